@@ -1,0 +1,290 @@
+"""The ``semmap`` command: run, check, list and draw graphs.
+
+User errors print one paragraph and exit 2; a block's crash prints one
+paragraph pointing at ``error.log`` and exits 1; Ctrl-C exits 130 after
+writing ``run.json`` and every output produced so far.
+"""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+
+from .core.atomic import atomic_write_json, atomic_write_text
+from .core.errors import SemmapError
+
+
+def _progress_enabled(quiet: bool) -> bool:
+    ci = os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
+    return not quiet and not ci and sys.stderr.isatty()
+
+
+def _load(graph: str, overrides: tuple[str, ...] = ()):
+    from .core.loader import load_graph
+    return load_graph(graph, list(overrides))
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="semmap", prog_name="semmap")
+def cli() -> None:
+    """semmap: compose blocks into YAML graphs and run them."""
+
+
+@cli.command()
+@click.argument("graph", type=click.Path(dir_okay=False))
+@click.option("--set", "overrides", multiple=True, metavar="NODE.PARAM=VALUE",
+              help="Override a parameter; dotted paths reach into subgraphs. Repeatable.")
+@click.option("--steps", type=click.IntRange(min=0), help="Ticks to run (default: the graph's).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Run seed.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False),
+              help="Output folder (default: runs/GRAPH_NAME).")
+@click.option("--record", "records", multiple=True, metavar="NODE.PORT",
+              help="Probe a port every tick into probes.npz. Repeatable.")
+@click.option("--strict", is_flag=True, help="Check every value against its port schema.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
+def run(graph: str, overrides: tuple[str, ...], steps: int | None, seed: int,
+        out_dir: str | None, records: tuple[str, ...], strict: bool, quiet: bool) -> None:
+    """Run GRAPH in lockstep and write run.json and the blocks' outputs."""
+    from .core.runner import BlockFailure, Runner
+
+    flat = _load(graph, overrides)
+    out = Path(out_dir) if out_dir else Path("runs") / flat.name
+    n_steps = steps if steps is not None else flat.steps
+    runner = Runner(flat, seed=seed, out_dir=out, records=list(records), strict=strict)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(out / "run.json", runner.summary({"status": "running"}))
+    bar = _make_bar(n_steps, flat.dt) if _progress_enabled(quiet) else None
+    failure: BlockFailure | SemmapError | None = None
+    try:
+        runner.run(n_steps, on_tick=bar.tick if bar else None)
+    except (BlockFailure, SemmapError) as exc:
+        failure = exc
+    finally:
+        if bar:
+            bar.close()
+        finish_errors = runner.finish()
+        extra: dict[str, Any] = {"finish_errors": finish_errors} if finish_errors else {}
+        if isinstance(failure, BlockFailure):
+            atomic_write_text(out / "error.log", failure.traceback)
+            extra["error"] = {"node": failure.node, "tick": failure.tick,
+                              "message": str(failure), "traceback": str(out / "error.log")}
+        elif failure is not None:
+            extra["error"] = {"message": str(failure)}
+        atomic_write_json(out / "run.json", runner.summary(extra))
+    if isinstance(failure, BlockFailure):
+        raise _Failure(f"{failure}. Outputs written so far are in {out}/; the full traceback "
+                       f"is in {out / 'error.log'}.", 1)
+    if failure is not None:
+        raise failure
+    for message in finish_errors:
+        click.echo(f"warning: {message}", err=True)
+    if runner.status == "interrupted":
+        click.echo(f"interrupted at tick {runner.tick}; outputs so far are in {out}/", err=True)
+        raise _Failure("", 130)
+    if not quiet:
+        _print_summary(runner, out)
+    else:
+        click.echo(str(out))
+
+
+class _Failure(Exception):
+    """Exit with a message and code (raised inside commands, handled in main)."""
+
+    def __init__(self, message: str, code: int) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+class _Bar:
+    """tqdm bar showing ticks and the x-real-time ratio."""
+
+    def __init__(self, total: int | None, dt: float) -> None:
+        from tqdm import tqdm
+        self.bar = tqdm(total=total, unit="tick", dynamic_ncols=True, leave=False)
+        self.dt = dt
+        self.start = time.perf_counter()
+        self.last = 0
+
+    def tick(self, t: int) -> None:
+        self.bar.update(t - self.last)
+        self.last = t
+        if t % 50 == 0:
+            wall = time.perf_counter() - self.start
+            if wall > 0:
+                self.bar.set_postfix_str(f"{t * self.dt / wall:.1f}x real time", refresh=False)
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def _make_bar(total: int | None, dt: float) -> _Bar:
+    return _Bar(total, dt)
+
+
+def _print_summary(runner: Any, out: Path) -> None:
+    s = runner.summary()
+    ratio = f"{s['x_real_time']}x real time" if s["x_real_time"] else ""
+    reason = f" ({s['stop_reason']})" if s["stop_reason"] else ""
+    click.echo(f"{s['status']}{reason}: {s['ticks']} ticks, {s['sim_time_s']:.3f} s simulated "
+               f"in {s['wall_time_s']:.3f} s {ratio}")
+    slowest = [r for r in s["profile"][:5] if r["calls"]]
+    if slowest:
+        click.echo("slowest blocks: " + ", ".join(
+            f"{r['node']} {r['mean_us']:.1f} us/call" for r in slowest))
+    click.echo(f"outputs: {out}/ (run.json" + (", probes" if s["records"] else "") +
+               (f", {len(s['outputs'])} files" if s["outputs"] else "") + ")")
+
+
+@cli.command()
+@click.argument("graph", type=click.Path(dir_okay=False))
+@click.option("--set", "overrides", multiple=True, metavar="NODE.PARAM=VALUE")
+@click.option("--schedule", "show_schedule", is_flag=True, help="Print the static schedule.")
+@click.option("--params", "show_params", is_flag=True, help="List every settable parameter.")
+def check(graph: str, overrides: tuple[str, ...], show_schedule: bool, show_params: bool) -> None:
+    """Validate GRAPH without running it (exit 0 valid, 2 invalid)."""
+    from .core.validate import check_graph, schedule
+
+    flat = _load(graph, overrides)
+    check_graph(flat)
+    tasks = schedule(flat)
+    click.echo(f"ok: {graph}: {len(flat.nodes)} nodes, {len(flat.edges)} edges, "
+               f"{len(tasks)} scheduled tasks, dt {flat.dt} s")
+    if show_schedule:
+        for i, task in enumerate(tasks):
+            node = flat.nodes[task.node]
+            gate = []
+            if node.period > 1:
+                gate.append(f"every {node.period} ticks from {node.offset}")
+            for group in node.triggers:
+                gate.append("when " + " or ".join(str(s) for s in group))
+            phase = "" if task.phase == "step" else f" [{task.phase}]"
+            click.echo(f"{i:4d}  {task.node}{phase}  ({node.type_name})"
+                       + (f"  {'; '.join(gate)}" if gate else ""))
+    if show_params:
+        for key, value in flat.params.items():
+            click.echo(f"{key} = {value!r}  ({flat.param_sources.get(key)})")
+        for node in flat.nodes.values():
+            if node.implicit:
+                continue
+            for key, value in node.params.items():
+                click.echo(f"{node.path}.{key} = {value!r}  ({node.param_sources.get(key)})")
+
+
+@cli.command(name="blocks")
+@click.argument("type_name", required=False)
+@click.option("--json", "as_json", is_flag=True, help="Machine-readable output.")
+@click.option("--markdown", is_flag=True, help="The reference docs in Markdown.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write to a file.")
+def blocks_cmd(type_name: str | None, as_json: bool, markdown: bool, output: str | None) -> None:
+    """List the block palette, or describe one block TYPE."""
+    from .core.palette import describe, palette, to_markdown, to_text
+    from .core.registry import REGISTRY
+
+    REGISTRY.ensure_loaded()
+    for warning in REGISTRY.load_warnings:
+        click.echo(f"warning: {warning}", err=True)
+    if type_name:
+        try:
+            entry = describe(type_name)
+        except KeyError:
+            close = REGISTRY.closest(type_name)
+            raise SemmapError(f"unknown block type '{type_name}'",
+                              hint=(f"Did you mean {' or '.join(map(repr, close))}?" if close
+                                    else "Run 'semmap blocks' to list them.")) from None
+        text = json.dumps(entry, indent=2, default=str) + "\n" if as_json else to_text(entry)
+    else:
+        entries = palette(published_only=markdown)
+        if as_json:
+            text = json.dumps(entries, indent=2, default=str) + "\n"
+        elif markdown:
+            text = to_markdown(entries)
+        else:
+            rows = []
+            for category in sorted({e["category"] for e in entries}):
+                rows.append(f"{category}:")
+                for e in (x for x in entries if x["category"] == category):
+                    rows.append(f"  {e['type']:<24} {e['summary']}")
+            text = "\n".join(rows) + "\n"
+    _emit(text, output)
+
+
+@cli.command()
+@click.argument("graph", type=click.Path(dir_okay=False))
+@click.option("--format", "fmt", type=click.Choice(["mermaid", "dot", "png"]), default="mermaid",
+              show_default=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write to a file.")
+@click.option("--set", "overrides", multiple=True, metavar="NODE.PARAM=VALUE")
+def graph(graph: str, fmt: str, output: str | None, overrides: tuple[str, ...]) -> None:
+    """Draw GRAPH as Mermaid, Graphviz DOT or a PNG picture."""
+    from .core.render import to_dot, to_mermaid, to_png
+    from .core.validate import check_graph
+
+    flat = _load(graph, overrides)
+    check_graph(flat)
+    if fmt == "png":
+        if not output:
+            raise SemmapError("--format png needs -o FILE.png")
+        to_png(flat, output)
+        click.echo(output)
+        return
+    _emit(to_mermaid(flat) if fmt == "mermaid" else to_dot(flat), output)
+
+
+@cli.command()
+@click.argument("graph", type=click.Path(dir_okay=False))
+@click.option("--set", "overrides", multiple=True, metavar="NODE.PARAM=VALUE")
+@click.option("--seed", type=int, default=0, show_default=True)
+def debug(graph: str, overrides: tuple[str, ...], seed: int) -> None:
+    """Step through GRAPH tick by tick and inspect ports (type 'help')."""
+    from .core.debugger import Debugger
+    from .core.runner import Runner
+
+    Debugger(Runner(_load(graph, overrides), seed=seed)).loop()
+
+
+def _emit(text: str, output: str | None) -> None:
+    if output:
+        atomic_write_text(output, text)
+        click.echo(output, err=True)
+    else:
+        click.echo(text, nl=False)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console entry point: never shows a traceback for a user error."""
+    try:
+        cli.main(args=argv, prog_name="semmap", standalone_mode=False)
+        return 0
+    except SemmapError as exc:
+        click.echo(f"error: {exc}", err=True)
+        return exc.exit_code
+    except _Failure as exc:
+        if str(exc):
+            click.echo(f"error: {exc}", err=True)
+        return exc.code
+    except click.exceptions.Abort:
+        click.echo("aborted", err=True)
+        return 130
+    except click.ClickException as exc:
+        exc.show()
+        return 2
+    except KeyboardInterrupt:
+        click.echo("interrupted", err=True)
+        return 130
+    except BrokenPipeError:
+        return 0
+    except Exception as exc:  # from the loader or a block's construction
+        from .core.runner import BlockFailure
+        if isinstance(exc, BlockFailure):
+            click.echo(f"error: {exc}", err=True)
+            return 1
+        raise
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""semantic: indoor ontology, reasoner and semantic map (see issue 7)."""
