@@ -168,6 +168,8 @@ def check(graph: str, overrides: tuple[str, ...], show_schedule: bool, show_para
     if show_params:
         for key, value in flat.params.items():
             click.echo(f"{key} = {value!r}  ({flat.param_sources.get(key)})")
+        for key, (value, source) in flat.subgraph_params.items():
+            click.echo(f"{key} = {value!r}  ({source})")
         for node in flat.nodes.values():
             if node.implicit:
                 continue

@@ -28,6 +28,8 @@ def test_run_writes_run_json_with_provenance(cli, tmp_path):
     assert nodes["chain.first.memory_gain"]["params"]["gain"] == {"value": 0.5, "from": "--set"}
     assert nodes["slow.memory_gain"]["params"]["gain"]["value"] == pytest.approx(0.7)
     assert run["graph"]["params"]["alpha"] == {"value": 0.7, "from": "--set"}
+    assert run["graph"]["subgraphs"]["fast"]["params"]["alpha"] == {"value": 0.2, "from": "--set"}
+    assert run["graph"]["subgraphs"]["chain.first"]["type"] == "leaky_integrator.yaml"
     assert {"set": "fast.alpha=0.2", "from": "--set"} in run["graph"]["overrides"]
     assert {r["node"] for r in run["profile"]} >= {"gap", "slow.total"}
     probes = load_probes(out)
@@ -147,3 +149,34 @@ def test_usage_errors_exit_2(cli):
 def test_version(cli):
     result = cli("--version")
     assert result.code == 0 and "semmap" in result.out
+
+
+def test_check_lists_params_with_sources(cli):
+    result = cli("check", EXAMPLES / "subgraphs.yaml", "--params", "--set", "fast.alpha=0.25")
+    assert result.code == 0
+    assert "alpha = 0.9" in result.out
+    assert "fast.memory_gain.gain = 0.25" in result.out
+    assert "fast.alpha = 0.25  (--set)" in result.out
+    assert "chain.first.alpha = 0.8  (" in result.out  # passed down from chain's default
+    assert "chain.first.total.op = 'add'  (" in result.out and "log.format = " in result.out
+    assert "  (default)" in result.out
+
+
+def test_progress_bar_off_in_ci_and_quiet(monkeypatch):
+    from blocks.cli import _progress_enabled
+    monkeypatch.setattr("sys.stderr.isatty", lambda: True, raising=False)
+    monkeypatch.setenv("CI", "true")
+    assert not _progress_enabled(False)
+    monkeypatch.delenv("CI")
+    assert not _progress_enabled(True)
+    assert _progress_enabled(False)
+
+
+def test_progress_bar_shows_ticks_and_real_time_ratio(capsys):
+    from blocks.cli import _Bar
+    bar = _Bar(total=100, dt=0.1)
+    bar.bar.disable = False
+    for t in range(1, 101):
+        bar.tick(t)
+    assert bar.bar.n == 100 and "real time" in bar.bar.postfix
+    bar.close()

@@ -100,6 +100,7 @@ class GraphLoader:
         self.overrides = parse_overrides(overrides)
         self.groups: dict[str, tuple[str, Origin]] = {}
         self.exposed_outputs: dict[str, Endpoint] = {}
+        self.subgraph_params: dict[str, tuple[Any, str]] = {}
         self.param_paths: list[str] = []
         self.dt = 1.0
 
@@ -122,7 +123,7 @@ class GraphLoader:
             nodes=nodes, edges=expanded.edges, params=params, param_sources=sources,
             overrides=[{"set": o.text, "from": "--set"} for o in self.overrides],
             doc=str(doc.get("doc") or ""), groups=self.groups,
-            exposed_outputs=self.exposed_outputs,
+            exposed_outputs=self.exposed_outputs, subgraph_params=self.subgraph_params,
         )
 
     # ---- reading ----------------------------------------------------------------
@@ -290,8 +291,10 @@ class GraphLoader:
                 given[str(name)] = (scope.subst(value, pline, full), f"{path}:{pline}", pline)
             sub_doc = self._read(sub_path)
             prefix = scope.prefix + (node_id,)
-            sub_params, _ = self._graph_params(sub_doc, sub_path, prefix, given,
-                                               Origin(str(path), line))
+            sub_params, sub_sources = self._graph_params(sub_doc, sub_path, prefix, given,
+                                                         Origin(str(path), line))
+            for name, value in sub_params.items():
+                self.subgraph_params[f"{full}.{name}"] = (value, sub_sources[name])
             expanded = self._expand_doc(sub_doc, sub_path, prefix, sub_params,
                                         stack + [sub_path.resolve()])
             type_label = raw.get("type") or str(raw.get("include"))

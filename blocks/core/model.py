@@ -75,6 +75,8 @@ class FlatGraph:
     doc: str = ""
     # The nesting of subgraph instances, for rendering: path -> (type, origin).
     groups: dict[str, tuple[str, Origin]] = field(default_factory=dict)
+    # Parameters of subgraph instances, ``group.param`` -> (value, source).
+    subgraph_params: dict[str, tuple[Any, str]] = field(default_factory=dict)
     # Exposed outputs of subgraph instances, ``group.port`` -> the inner port.
     exposed_outputs: dict[str, Endpoint] = field(default_factory=dict)
 
@@ -91,6 +93,13 @@ class FlatGraph:
             "params": {k: {"value": _plain(v), "from": self.param_sources.get(k, "default")}
                        for k, v in self.params.items()},
             "overrides": self.overrides,
+            "subgraphs": {
+                group: {"type": kind, "origin": str(origin), "params": {
+                    key.rsplit(".", 1)[1]: {"value": _plain(v), "from": src}
+                    for key, (v, src) in self.subgraph_params.items()
+                    if key.rsplit(".", 1)[0] == group}}
+                for group, (kind, origin) in self.groups.items()
+            },
             "nodes": [
                 {
                     "id": n.path,

@@ -1,14 +1,17 @@
 """Arithmetic on scalars and arrays (numpy broadcasting rules)."""
 from __future__ import annotations
 
+import operator
 from typing import Any, Callable
 
 import numpy as np
 
 from ..core import Block, Param, Port, block
 
+# operator.* handles Python numbers and numpy arrays alike, and is ~5x faster
+# than the numpy ufuncs on plain floats; min/max need numpy for elementwise arrays.
 OPERATIONS: dict[str, Callable[[Any, Any], Any]] = {
-    "add": np.add, "sub": np.subtract, "mul": np.multiply, "div": np.divide,
+    "add": operator.add, "sub": operator.sub, "mul": operator.mul, "div": operator.truediv,
     "min": np.minimum, "max": np.maximum,
 }
 
@@ -31,7 +34,11 @@ class Arith(Block):
         self._op = OPERATIONS[self.p.op]
 
     def step(self, a: Any, b: Any) -> dict[str, Any]:
-        return {"y": _plain(self._op(a, b))}
+        try:
+            return {"y": _plain(self._op(a, b))}
+        except ZeroDivisionError:  # follow numpy: x / 0 is +-inf or nan, not a crash
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return {"y": _plain(np.divide(np.float64(a), b))}
 
 
 @block("scale", category="math")
