@@ -65,7 +65,8 @@ class SemmapError(Exception):
         text = f"{where}: {self.message}" if where else self.message
         if self.hint:
             text = f"{text.rstrip('.')}. {self.hint}"
-        return text
+        # User text quoted in a message may hold line breaks; keep one paragraph.
+        return text.replace("\r", "\\r").replace("\n", "\\n")
 
 
 class GraphError(SemmapError):

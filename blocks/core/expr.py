@@ -28,16 +28,25 @@ class ExprError(ValueError):
     """The expression uses something outside the safe subset, or names an unknown value."""
 
 
+MAX_LENGTH = 400
+
+
 def evaluate(text: str, names: Mapping[str, Any]) -> Any:
     """Evaluate ``text`` with ``names`` as variables; raise ExprError if it is not allowed."""
+    if len(text) > MAX_LENGTH:
+        raise ExprError(f"expression longer than {MAX_LENGTH} characters; use a parameter")
     try:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as exc:
         raise ExprError(f"cannot parse {text!r}: {exc.msg}") from None
+    except (RecursionError, MemoryError, ValueError):
+        raise ExprError("expression too deeply nested") from None
     try:
         return _eval(tree.body, names)
     except ExprError:
         raise
+    except RecursionError:
+        raise ExprError("expression too deeply nested") from None
     except (ArithmeticError, TypeError, ValueError, OverflowError) as exc:
         raise ExprError(f"{text!r} fails: {exc}") from None
 

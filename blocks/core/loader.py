@@ -7,6 +7,7 @@ mistake becomes a :class:`GraphError` naming the file, line, node and field.
 from __future__ import annotations
 
 import difflib
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,7 +20,7 @@ from .block import Block
 from .errors import GraphError
 from .expr import ExprError, evaluate
 from .model import Endpoint, FlatEdge, FlatGraph, FlatNode, Origin
-from .params import Param
+from .params import Param, to_float
 from .registry import REGISTRY, Registry, SubgraphType
 from .yamlsrc import LineDict, LineList, line_of, load_yaml_file
 
@@ -57,8 +58,8 @@ def parse_overrides(items: Iterable[str] | dict[str, Any] | None) -> list[Overri
             key, raw = text.split("=", 1)
             try:
                 value = yaml.safe_load(raw) if raw.strip() else ""
-            except yaml.YAMLError:
-                value = raw
+            except (yaml.YAMLError, ValueError, RecursionError, OverflowError):
+                value = raw  # not YAML: take the text as it is
             pairs.append((key.strip(), value, text))
     result = []
     for key, value, text in pairs:
@@ -143,8 +144,13 @@ class GraphLoader:
 
     def _clock(self, doc: LineDict, path: Path) -> tuple[float, Any]:
         dt = doc.get("dt", 0.1)
-        if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not dt > 0:
-            raise GraphError(f"dt must be a positive number of seconds, got {dt!r}",
+        try:
+            ok = not isinstance(dt, bool) and isinstance(dt, (int, float)) and \
+                math.isfinite(to_float(dt)) and 1e-9 <= dt <= 1e6
+        except ValueError:
+            ok = False
+        if not ok:
+            raise GraphError(f"dt must be a number of seconds in [1e-9, 1e6], got {_short(dt)}",
                              file=path, line=line_of(doc, "dt"), field="dt")
         return float(dt), doc.get("steps")
 
@@ -331,7 +337,12 @@ class GraphLoader:
                 raise GraphError("'include' must be a path to a YAML subgraph", file=path,
                                  line=line_of(raw, "include"), node=full)
             target = (path.parent / include)
-            if not target.is_file():
+            try:
+                found = target.is_file()
+            except (OSError, ValueError) as exc:
+                raise GraphError(f"cannot use the include path: {exc}", file=path,
+                                 line=line_of(raw, "include"), node=full) from None
+            if not found:
                 raise GraphError(f"included file '{include}' not found (looked in "
                                  f"{target.parent})", file=path, line=line_of(raw, "include"),
                                  node=full, hint="Paths are relative to this graph file.")
@@ -361,10 +372,17 @@ class GraphLoader:
                 raise GraphError("give either 'rate' or 'period', not both", file=path,
                                  line=line_of(raw, "rate"), node=full)
             rate = scope.subst(raw["rate"], line_of(raw, "rate"), full)
-            if isinstance(rate, bool) or not isinstance(rate, (int, float)) or rate <= 0:
-                raise GraphError(f"rate must be a positive number of Hz, got {rate!r}",
-                                 file=path, line=line_of(raw, "rate"), node=full, field="rate")
-            ticks = 1.0 / (rate * self.dt)
+            try:
+                ticks = 1.0 / (to_float(rate) * self.dt)
+                ok = not isinstance(rate, bool) and rate > 0 and math.isfinite(ticks) \
+                    and ticks < 1e12
+            except (ValueError, TypeError, ZeroDivisionError, OverflowError):
+                ok = False
+            if not ok:
+                raise GraphError(f"rate must be a positive number of Hz, got {_short(rate)}",
+                                 file=path, line=line_of(raw, "rate"), node=full, field="rate",
+                                 hint=f"At dt = {self.dt} s the fastest rate is "
+                                      f"{1 / self.dt:g} Hz.")
             period = round(ticks)
             if period < 1 or abs(ticks - period) > 1e-6 * max(1.0, ticks):
                 raise GraphError(f"rate {rate} Hz is not a whole number of ticks at dt = "
@@ -614,6 +632,11 @@ class _Scope:
             raise GraphError(f"in ${{{text}}}: {exc}", file=self.file, line=line, node=node,
                              hint="Expressions may use the file's params, numbers, + - * / "
                                   "// % **, comparisons and min, max, abs, round.") from None
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def _full(scope: _Scope, node_id: str) -> str:

@@ -54,7 +54,7 @@ class Param:
         if t is float:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ValueError(f"expected a number, got {_show(value)}")
-            value = float(value)
+            value = to_float(value)
         elif t is int:
             if isinstance(value, bool) or not isinstance(value, int):
                 if isinstance(value, float) and value.is_integer():
@@ -130,6 +130,8 @@ class Param:
             if bound in spec and (isinstance(spec[bound], bool)
                                   or not isinstance(spec[bound], (int, float))):
                 raise ValueError(f"{bound} must be a number")
+            if bound in spec:
+                to_float(spec[bound])
         doc = spec.get("doc", "")
         param = cls(type=ptype, default=spec.get("default", _MISSING), doc=str(doc),
                     min=spec.get("min"), max=spec.get("max"),
@@ -138,6 +140,17 @@ class Param:
         if not param.required:
             param.coerce(param.default)
         return param
+
+
+def to_float(value: int | float) -> float:
+    """A number as a float; ValueError for nan or an integer too large for a float."""
+    try:
+        result = float(value)
+    except OverflowError:
+        raise ValueError(f"{_show(value)} is too large for a number") from None
+    if result != result:
+        raise ValueError("nan is not a usable value")
+    return result
 
 
 def _infer_type(value: Any) -> type:

@@ -81,7 +81,13 @@ _LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _co
 
 def load_yaml_text(text: str, file: str | Path = "<string>") -> Any:
     """Parse YAML text into LineDict/LineList trees; syntax errors become GraphError."""
-    loader = _LineLoader(text)
+    try:
+        loader = _LineLoader(text)
+    except yaml.reader.ReaderError as exc:
+        raise GraphError(
+            f"the file holds a character YAML does not allow ({exc.character!r} at "
+            f"character {exc.position})", file=file,
+            hint="Remove control characters; save the file as plain UTF-8 text.") from None
     loader.name = str(file)
     try:
         return loader.get_single_data()
@@ -94,6 +100,9 @@ def load_yaml_text(text: str, file: str | Path = "<string>") -> Any:
             file=file, line=line,
             hint="Check the indentation and quoting around that line.",
         ) from None
+    except yaml.reader.ReaderError as exc:
+        raise GraphError(f"the file holds a character YAML does not allow ({exc.character!r})",
+                         file=file, hint="Save the file as plain UTF-8 text.") from None
     except yaml.YAMLError as exc:
         raise GraphError(f"YAML error: {exc}", file=file) from None
     except (RecursionError, ValueError, OverflowError) as exc:
