@@ -180,3 +180,20 @@ def test_progress_bar_shows_ticks_and_real_time_ratio(capsys):
         bar.tick(t)
     assert bar.bar.n == 100 and "real time" in bar.bar.postfix
     bar.close()
+
+
+def test_non_numeric_probe_goes_to_jsonl(write, cli, tmp_path):
+    path = write("g.yaml", """
+        steps: 3
+        nodes:
+          - {id: msg, type: constant, params: {value: {text: MAIL ROOM, score: 0.9}}}
+          - {id: c, type: counter}
+    """)
+    out = tmp_path / "out"
+    assert cli("run", path, "--out", out, "-q", "--record", "msg.value",
+               "--record", "c.count").code == 0
+    assert (out / "probes" / "msg.value.jsonl").exists()
+    probes = load_probes(out)
+    ticks, values = probes["msg.value"]
+    assert ticks.tolist() == [0, 1, 2] and values[0] == {"text": "MAIL ROOM", "score": 0.9}
+    assert probes["c.count"][1].tolist() == [0, 1, 2]

@@ -8,6 +8,8 @@ import tempfile
 from pathlib import Path
 from typing import IO, Any, Iterator
 
+from .jsonable import to_jsonable
+
 
 @contextlib.contextmanager
 def atomic_writer(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
@@ -38,16 +40,4 @@ def atomic_write_text(path: str | Path, text: str) -> None:
 
 
 def atomic_write_json(path: str | Path, obj: Any) -> None:
-    atomic_write_text(path, json.dumps(obj, indent=2, default=_default) + "\n")
-
-
-def _default(value: Any) -> Any:
-    try:
-        import numpy as np
-        if isinstance(value, np.ndarray):
-            return value.tolist()
-        if isinstance(value, np.generic):
-            return value.item()
-    except ImportError:  # pragma: no cover
-        pass
-    return repr(value)
+    atomic_write_text(path, json.dumps(to_jsonable(obj), indent=2) + "\n")

@@ -22,7 +22,7 @@ from .expr import ExprError, evaluate
 from .model import Endpoint, FlatEdge, FlatGraph, FlatNode, Origin
 from .params import Param, to_float
 from .registry import REGISTRY, Registry, SubgraphType
-from .yamlsrc import LineDict, LineList, line_of, load_yaml_file
+from .yamlsrc import LineDict, line_of, load_yaml_file
 
 TOP_KEYS = ("semmap", "name", "doc", "dt", "steps", "params", "inputs", "outputs",
             "nodes", "edges")
@@ -550,7 +550,7 @@ class GraphLoader:
 
     def _resolve_triggers(self, nodes_raw: list, scope: "_Scope",
                           local: dict[str, _LocalNode]) -> None:
-        for index, raw in enumerate(nodes_raw):
+        for raw in nodes_raw:
             if "trigger" not in raw:
                 continue
             spec = raw["trigger"]

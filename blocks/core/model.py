@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .block import Block
+from .jsonable import to_jsonable as _plain
 from .schema import Port
 
 
@@ -116,20 +117,3 @@ class FlatGraph:
             "edges": [{"from": str(e.src), "to": str(e.dst), "origin": str(e.origin)}
                       for e in self.edges],
         }
-
-
-def _plain(value: Any) -> Any:
-    """Turn numpy values into JSON-friendly ones."""
-    try:
-        import numpy as np
-        if isinstance(value, np.ndarray):
-            return value.tolist()
-        if isinstance(value, np.generic):
-            return value.item()
-    except ImportError:  # pragma: no cover
-        pass
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from .atomic import atomic_writer
+from .jsonable import to_jsonable
 from .npzio import save_npz
 
 
@@ -55,7 +56,7 @@ def save_probes(probes: list[Probe], out_dir: Path) -> list[str]:
         path.parent.mkdir(parents=True, exist_ok=True)
         with atomic_writer(path, "w") as fh:
             for tick, value in zip(probe.ticks, probe.values):
-                fh.write(json.dumps({"tick": tick, "value": _jsonable(value)}) + "\n")
+                fh.write(json.dumps({"tick": tick, "value": to_jsonable(value)}) + "\n")
         written.append(str(path))
     if arrays:
         path = out_dir / "probes.npz"
@@ -82,17 +83,3 @@ def load_probes(run_dir: str | Path) -> dict[str, tuple[np.ndarray, Any]]:
         result[path.stem] = (np.asarray([r["tick"] for r in rows], dtype=np.int64),
                              [r["value"] for r in rows])
     return result
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, (str, int, float, bool)) or value is None:
-        return value
-    return repr(value)

@@ -7,7 +7,7 @@ generic blocks stay generic while domain blocks stay strict.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
