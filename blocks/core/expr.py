@@ -29,6 +29,30 @@ class ExprError(ValueError):
 
 
 MAX_LENGTH = 400
+MAX_INT_BITS = 1024  # results stay printable and cheap
+MAX_TEXT = 10_000
+
+
+def _check_cost(op: ast.operator, left: Any, right: Any) -> None:
+    """Refuse operations whose result would be huge, before computing them."""
+    if isinstance(op, ast.Pow) and isinstance(left, int) and isinstance(right, int):
+        if right > 0 and abs(left) > 1 and left.bit_length() * right > MAX_INT_BITS:
+            raise ExprError("result too large")
+    if isinstance(op, ast.Pow) and isinstance(right, (int, float)) and abs(right) > 1024:
+        raise ExprError("exponent too large")
+    if isinstance(op, ast.Mult):
+        for text, count in ((left, right), (right, left)):
+            if isinstance(text, str) and isinstance(count, int) and len(text) * count > MAX_TEXT:
+                raise ExprError("text too long")
+
+
+def _bounded(value: Any) -> Any:
+    if isinstance(value, int) and not isinstance(value, bool) and \
+            value.bit_length() > MAX_INT_BITS:
+        raise ExprError("result too large")
+    if isinstance(value, str) and len(value) > MAX_TEXT:
+        raise ExprError("text too long")
+    return value
 
 
 def evaluate(text: str, names: Mapping[str, Any]) -> Any:
@@ -62,9 +86,8 @@ def _eval(node: ast.AST, names: Mapping[str, Any]) -> Any:
         raise ExprError(f"unknown name '{node.id}'")
     if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
         left, right = _eval(node.left, names), _eval(node.right, names)
-        if isinstance(node.op, ast.Pow) and isinstance(right, (int, float)) and abs(right) > 64:
-            raise ExprError("exponent too large")
-        return _BINARY[type(node.op)](left, right)
+        _check_cost(node.op, left, right)
+        return _bounded(_BINARY[type(node.op)](left, right))
     if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
         return _UNARY[type(node.op)](_eval(node.operand, names))
     if isinstance(node, ast.BoolOp):
