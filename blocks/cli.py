@@ -24,9 +24,9 @@ def _progress_enabled(quiet: bool) -> bool:
     return not quiet and not ci and sys.stderr.isatty()
 
 
-def _load(graph: str, overrides: tuple[str, ...] = ()):
+def _load(graph: str, overrides: tuple[str, ...] = (), world: str | None = None):
     from .core.loader import load_graph
-    return load_graph(graph, list(overrides))
+    return load_graph(graph, list(overrides), roles={"world": world} if world else None)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -46,13 +46,16 @@ def cli() -> None:
 @click.option("--record", "records", multiple=True, metavar="NODE.PORT",
               help="Probe a port every tick into probes.npz. Repeatable.")
 @click.option("--strict", is_flag=True, help="Check every value against its port schema.")
+@click.option("--world", metavar="FILE|NAME",
+              help="Set the world of every node that takes one (parameters with role 'world').")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 def run(graph: str, overrides: tuple[str, ...], steps: int | None, seed: int,
-        out_dir: str | None, records: tuple[str, ...], strict: bool, quiet: bool) -> None:
+        out_dir: str | None, records: tuple[str, ...], strict: bool, world: str | None,
+        quiet: bool) -> None:
     """Run GRAPH in lockstep and write run.json and the blocks' outputs."""
     from .core.runner import BlockFailure, Runner
 
-    flat = _load(graph, overrides)
+    flat = _load(graph, overrides, world)
     out = Path(out_dir) if out_dir else Path("runs") / flat.name
     n_steps = steps if steps is not None else flat.steps
     runner = Runner(flat, seed=seed, out_dir=out, records=list(records), strict=strict)

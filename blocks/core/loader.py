@@ -96,9 +96,12 @@ class GraphLoader:
     """Turns a graph file plus overrides into a FlatGraph."""
 
     def __init__(self, registry: Registry | None = None,
-                 overrides: Iterable[str] | dict[str, Any] | None = None) -> None:
+                 overrides: Iterable[str] | dict[str, Any] | None = None,
+                 roles: dict[str, Any] | None = None) -> None:
         self.registry = registry or REGISTRY
         self.overrides = parse_overrides(overrides)
+        self.roles = dict(roles or {})  # role -> value, e.g. {"world": "office"}
+        self.roles_used: set[str] = set()
         self.groups: dict[str, tuple[str, Origin]] = {}
         self.exposed_outputs: dict[str, Endpoint] = {}
         self.subgraph_params: dict[str, tuple[Any, str]] = {}
@@ -113,6 +116,10 @@ class GraphLoader:
         params, sources = self._graph_params(doc, path, (), {}, None)
         expanded = self._expand_doc(doc, path, (), params, [path.resolve()])
         self._check_overrides_used()
+        for role in set(self.roles) - self.roles_used:
+            raise GraphError(f"--{role} was given, but no node in the graph takes a {role}",
+                             file=path, hint=f"Add a node whose block has a {role} parameter, "
+                                             f"or drop --{role}.")
         scope_sub = _Scope(path, (), params)
         steps = scope_sub.subst(steps, line_of(doc, "steps")) if steps is not None else None
         if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 0):
@@ -417,6 +424,9 @@ class GraphLoader:
             value = spec.default
             if name in given:
                 value, source = scope.subst(given[name], line, full), f"{path}:{line}"
+            if spec.role is not None and spec.role in self.roles:
+                value, source = self.roles[spec.role], f"--{spec.role}"
+                self.roles_used.add(spec.role)
             override = self._take_override(tuple(full.split(".")) + (name,))
             if override is not None:
                 value, source = override.value, "--set"
@@ -655,6 +665,10 @@ def _range_hint(spec: Param) -> str:
 
 
 def load_graph(path: str | Path, overrides: Iterable[str] | dict[str, Any] | None = None,
-               registry: Registry | None = None) -> FlatGraph:
-    """Load and flatten a graph file (validation is separate: see ``check_graph``)."""
-    return GraphLoader(registry, overrides).load(path)
+               registry: Registry | None = None, roles: dict[str, Any] | None = None
+               ) -> FlatGraph:
+    """Load and flatten a graph file (validation is separate: see ``check_graph``).
+
+    ``roles`` sets every parameter declared with that role, e.g. ``{"world": path}``.
+    """
+    return GraphLoader(registry, overrides, roles).load(path)

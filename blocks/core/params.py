@@ -39,6 +39,7 @@ class Param:
     max: float | None = None
     choices: tuple | None = None
     unit: str | None = None
+    role: str | None = None  # e.g. "world": set on every node at once by `semmap run --world`
 
     @property
     def required(self) -> bool:
@@ -100,7 +101,7 @@ class Param:
             out["default"] = self.default
         else:
             out["required"] = True
-        for name in ("min", "max", "unit"):
+        for name in ("min", "max", "unit", "role"):
             if getattr(self, name) is not None:
                 out[name] = getattr(self, name)
         if self.choices is not None:

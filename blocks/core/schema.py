@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-KINDS = ("any", "scalar", "array", "image", "message", "event")
+KINDS = ("any", "scalar", "array", "image", "message", "event", "handle")
 
 Dim = int | str | None
 
@@ -35,8 +35,9 @@ class Port:
     Parameters
     ----------
     kind
-        One of ``any, scalar, array, image, message, event``. ``event`` is a
-        boolean that fires a trigger on the ticks it is true.
+        One of ``any, scalar, array, image, message, event, handle``. ``event``
+        is a boolean that fires a trigger on the ticks it is true; ``handle`` is
+        a shared object (a simulator, a model) whose users must run after its owner.
     dtype
         numpy dtype name (``float64``, ``uint8``, ``bool``) or ``None``.
     shape

@@ -1,0 +1,214 @@
+"""sim2d blocks: the world (physics), drive, sonar, odometry, true pose and PTZ camera.
+
+The ``sim2d.world`` node owns the simulation and outputs it as a handle;
+every robot-side block takes that handle, which orders it after the physics
+step. A drive command given at tick t moves the robot during tick t+1, like a
+real robot's one-cycle actuation latency.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blocks.core import Block, BlockError, Param, Port, block
+from blocks.core.atomic import atomic_write_text
+
+from .robot import load_robot
+from .simulation import Simulation
+from .world import World, load_world
+
+POSE_UNIT = "m,m,rad"
+SIM = Port(kind="handle", doc="the simulation (from a sim2d.world node)")
+
+
+def resolve_world(name_or_path: str) -> Path:
+    """A world library name (``office``) or a path to a world YAML."""
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        return path
+    from .worlds import world_path
+    return world_path(name_or_path)
+
+
+@block("sim2d.world", category="sim2d")
+class WorldBlock(Block):
+    """Owns the simulated world and its robots; steps the physics every tick.
+
+    Writes ``trajectory.csv`` (tick, time, robot, true pose, odometry pose) and
+    reports the number of collisions to run.json.
+    """
+
+    outputs = {"sim": Port(kind="handle", doc="the simulation, for the robot-side blocks"),
+               "time": Port.scalar("float64", unit="s", doc="simulated time")}
+    params = {
+        "world": Param(str, "office", "world library name or world YAML path", role="world"),
+        "robots": Param(list, [{"name": "robot", "model": "atrv_mini"}],
+                        "robots: [{name, model, start: [x, y, theta]}]; start defaults to "
+                        "the world's starts in order"),
+        "trajectory": Param(bool, True, "write trajectory.csv"),
+    }
+
+    def setup(self) -> None:
+        self.world: World = load_world(resolve_world(self.p.world))
+        self._robots = self._robot_list()
+
+    def _robot_list(self) -> list[tuple[str, Any, tuple[float, float, float]]]:
+        robots = []
+        for i, entry in enumerate(self.p.robots):
+            if not isinstance(entry, dict) or not isinstance(entry.get("name", "robot"), str):
+                raise BlockError(f"robots[{i}] must be a mapping {{name, model, start}}",
+                                 node=self.name, field="param 'robots'")
+            name = entry.get("name", f"robot{i}")
+            spec = load_robot(entry.get("model", "atrv_mini"))
+            start = entry.get("start")
+            if start is None:
+                if len(self.world.starts) > i:
+                    start = self.world.starts[i]
+                else:  # more robots than start poses: line them up behind the first
+                    x, y, th = self.world.starts[0]
+                    back = 0.8 * i
+                    start = (x - back * math.cos(th), y - back * math.sin(th), th)
+            if not (isinstance(start, (list, tuple)) and len(start) == 3):
+                raise BlockError(f"robots[{i}].start must be [x, y, theta]", node=self.name,
+                                 field="param 'robots'")
+            robots.append((name, spec, tuple(float(v) for v in start)))
+        names = [r[0] for r in robots]
+        if len(set(names)) != len(names):
+            raise BlockError(f"robot names must be unique, got {names}", node=self.name,
+                             field="param 'robots'")
+        return robots
+
+    def reset(self) -> None:
+        seed = int(self.rng.integers(2**63))
+        self.sim = Simulation(self.world, self._robots, seed=seed)
+        self._rows: list[tuple] = []
+
+    def step(self) -> dict[str, Any]:
+        if self.ctx.tick > 0:
+            self.sim.step(self.ctx.dt)
+        if self.p.trajectory:
+            for robot in self.sim.robots.values():
+                pose, odom = robot.pose, robot.odom
+                self._rows.append((self.ctx.tick, self.ctx.tick * self.ctx.dt, robot.name,
+                                   *pose, *odom, *robot.velocity))
+        return {"sim": self.sim, "time": self.sim.time}
+
+    def finish(self) -> None:
+        if not hasattr(self, "sim"):
+            return
+        collisions = {r.name: r.collisions for r in self.sim.robots.values()}
+        self.report("collisions", sum(collisions.values()))
+        self.report("collisions_by_robot", collisions)
+        self.report("world", self.world.source or self.world.name)
+        if self.ctx.out_dir is None or not self.p.trajectory:
+            return
+        text = io.StringIO()
+        writer = csv.writer(text)
+        writer.writerow(["tick", "time", "robot", "x", "y", "theta", "odom_x", "odom_y",
+                         "odom_theta", "v", "w"])
+        for row in self._rows:
+            writer.writerow([row[0], f"{row[1]:.6f}", row[2],
+                             *(f"{v:.6f}" for v in row[3:])])
+        atomic_write_text(self.output_path("trajectory.csv"), text.getvalue())
+
+
+class _RobotBlock(Block):
+    """Common to blocks that act for one named robot."""
+
+    category = "sim2d"
+
+    def _robot(self, sim: Simulation):
+        if sim is None:
+            raise BlockError("no simulation on the 'sim' input", node=self.name)
+        try:
+            return sim.robots[self.p.robot]
+        except KeyError:
+            raise BlockError(f"the world has no robot named '{self.p.robot}'", node=self.name,
+                             field="param 'robot'",
+                             hint=f"Robots: {', '.join(sim.robots)}.") from None
+
+
+ROBOT = Param(str, "robot", "name of the robot (see the world node's robots)")
+
+
+@block("sim2d.drive", category="sim2d")
+class Drive(_RobotBlock):
+    """Sends translation and rotation velocity commands to a robot (clipped to its limits)."""
+
+    inputs = {"sim": SIM,
+              "v": Port.scalar("float64", unit="m/s", doc="translation velocity command"),
+              "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity command (CCW +)")}
+    outputs = {"v_cmd": Port.scalar("float64", unit="m/s", doc="command after limits"),
+               "w_cmd": Port.scalar("float64", unit="rad/s", doc="command after limits")}
+    params = {"robot": ROBOT}
+
+    def step(self, sim: Simulation, v: float, w: float) -> dict[str, Any]:
+        robot = self._robot(sim)
+        sim.command(robot.name, float(v if v is not None else 0.0),
+                    float(w if w is not None else 0.0))
+        return {"v_cmd": robot.command[0], "w_cmd": robot.command[1]}
+
+
+@block("sim2d.sonar", category="sim2d")
+class Sonar(_RobotBlock):
+    """The robot's sonar ring: ranges, and which readings are real echoes.
+
+    A reading with no echo (nothing within range, or lost to specular
+    reflection) is ``max_range`` with ``echo`` false. It reads at the sonar
+    rate and holds its outputs in between; ``fresh`` fires on new readings.
+    """
+
+    inputs = {"sim": SIM}
+    outputs = {
+        "ranges": Port.array("float64", (16,), unit="m", frame="robot",
+                             doc="range per sensor, in the robot file's order"),
+        "echo": Port.array("bool", (16,), frame="robot", doc="true where a real echo came back"),
+        "fresh": Port.event(doc="true on ticks with a new reading"),
+    }
+    params = {"robot": ROBOT,
+              "rate_hz": Param(float, 0.0, "readings per second; 0 uses the robot's sonar rate",
+                               min=0.0)}
+
+    def reset(self) -> None:
+        self._next_time = 0.0
+
+    def step(self, sim: Simulation) -> dict[str, Any]:
+        robot = self._robot(sim)
+        rate = self.p.rate_hz or robot.spec.sonar.rate_hz
+        now = self.ctx.tick * self.ctx.dt
+        if rate > 0 and now + 1e-9 < self._next_time:
+            return {"fresh": False}
+        self._next_time = now + (1.0 / rate if rate > 0 else 0.0)
+        ranges, echo = sim.sonar(robot.name)
+        return {"ranges": ranges, "echo": echo, "fresh": True}
+
+
+@block("sim2d.odometry", category="sim2d")
+class Odometry(_RobotBlock):
+    """Dead-reckoned pose (x, y, theta), starting at the true start pose, drifting with motion."""
+
+    inputs = {"sim": SIM}
+    outputs = {"pose": Port.array("float64", (3,), unit=POSE_UNIT, frame="odom",
+                                  doc="x, y, theta by odometry")}
+    params = {"robot": ROBOT}
+
+    def step(self, sim: Simulation) -> dict[str, Any]:
+        return {"pose": self._robot(sim).odom.copy()}
+
+
+@block("sim2d.true_pose", category="sim2d")
+class TruePose(_RobotBlock):
+    """Ground-truth pose (x, y, theta) in the world frame: for scoring, not for control."""
+
+    inputs = {"sim": SIM}
+    outputs = {"pose": Port.array("float64", (3,), unit=POSE_UNIT, frame="world",
+                                  doc="true x, y, theta")}
+    params = {"robot": ROBOT}
+
+    def step(self, sim: Simulation) -> dict[str, Any]:
+        return {"pose": self._robot(sim).pose}
