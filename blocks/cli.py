@@ -29,7 +29,32 @@ def _load(graph: str, overrides: tuple[str, ...] = (), world: str | None = None)
     return load_graph(graph, list(overrides), roles={"world": world} if world else None)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class ToolboxCommands(click.Group):
+    """A group that also offers the toolboxes' commands (entry points ``semmap.commands``),
+    importing each only when it is used."""
+
+    def _entry_points(self) -> dict[str, Any]:
+        from importlib.metadata import entry_points
+        return {ep.name: ep for ep in entry_points(group="semmap.commands")}
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(set(super().list_commands(ctx)) | set(self._entry_points()))
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        command = super().get_command(ctx, name)
+        if command is not None:
+            return command
+        ep = self._entry_points().get(name)
+        if ep is None:
+            return None
+        try:
+            return ep.load()
+        except Exception as exc:  # a broken toolbox must not break the other commands
+            raise SemmapError(f"the command '{name}' from {ep.value} failed to load: "
+                              f"{type(exc).__name__}: {exc}") from None
+
+
+@click.group(cls=ToolboxCommands, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="semmap", prog_name="semmap")
 def cli() -> None:
     """semmap: compose blocks into YAML graphs and run them."""

@@ -105,6 +105,8 @@ class WorldBlock(Block):
         self.report("collisions", sum(collisions.values()))
         self.report("collisions_by_robot", collisions)
         self.report("world", self.world.source or self.world.name)
+        self.report("robots", [{"name": name, "model": spec.name, "length": spec.length,
+                                "width": spec.width} for name, spec, _ in self._robots])
         if self.ctx.out_dir is None or not self.p.trajectory:
             return
         text = io.StringIO()
@@ -115,6 +117,24 @@ class WorldBlock(Block):
             writer.writerow([row[0], f"{row[1]:.6f}", row[2],
                              *(f"{v:.6f}" for v in row[3:])])
         atomic_write_text(self.output_path("trajectory.csv"), text.getvalue())
+        self._write_sonar_log()
+
+    def _write_sonar_log(self) -> None:
+        """sonar.npz: per robot NAME@tick, NAME@ranges, NAME@echo, plus the sensor mounts."""
+        from blocks.core.npzio import save_npz
+        arrays: dict[str, np.ndarray] = {}
+        for robot in self.sim.robots.values():
+            if not robot.sonar_log:
+                continue
+            ticks, ranges, echo = zip(*robot.sonar_log)
+            arrays[f"{robot.name}@tick"] = np.asarray(ticks, dtype=np.int64)
+            arrays[f"{robot.name}@ranges"] = np.asarray(ranges)
+            arrays[f"{robot.name}@echo"] = np.asarray(echo)
+            arrays[f"{robot.name}@mounts"] = robot.spec.sonar_mounts
+            arrays[f"{robot.name}@cone_deg"] = np.asarray(robot.spec.sonar.cone_deg)
+            arrays[f"{robot.name}@max_range"] = np.asarray(robot.spec.sonar.max_range)
+        if arrays:
+            save_npz(self.output_path("sonar.npz"), arrays)
 
 
 class _RobotBlock(Block):

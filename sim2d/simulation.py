@@ -55,6 +55,7 @@ class RobotState:
     rng_sonar: np.random.Generator | None = None
     sonar_ranges: np.ndarray | None = None
     sonar_echo: np.ndarray | None = None
+    sonar_log: list = field(default_factory=list)  # (tick, ranges, echo) per reading
 
     @property
     def pose(self) -> np.ndarray:
@@ -221,6 +222,7 @@ class Simulation:
         sensors = sensor_poses(pose, spec.sonar_mounts)
         ranges, echo = sonar_readings(sensors, segments, spec.sonar, robot.rng_sonar)
         robot.sonar_ranges, robot.sonar_echo = ranges, echo
+        robot.sonar_log.append((self.ticks, ranges, echo))
         return ranges, echo
 
     def _other_robot_edges(self, robot: RobotState, pose: np.ndarray, reach: float) -> np.ndarray:

@@ -1,6 +1,6 @@
 """The semmap dataflow engine: domain-free."""
 from .block import Block, RunContext
-from .errors import BlockError, GraphError, ParamError, SemmapError
+from .errors import BlockError, GraphError, ParamError, SchemaViolation, SemmapError
 from .loader import load_graph, parse_overrides
 from .model import Endpoint, FlatGraph, FlatNode
 from .params import Param

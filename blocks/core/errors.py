@@ -78,6 +78,10 @@ class ParamError(SemmapError):
 
 
 class BlockError(SemmapError):
-    """A block met a user-caused problem at run time (bad input file, ...)."""
+    """A block met a user-caused problem at run time (bad input file, unknown robot, ...)."""
+
+
+class SchemaViolation(SemmapError):
+    """A block's output broke its declared schema (found by --strict): a bug in the block."""
 
     exit_code = 1

@@ -19,7 +19,7 @@ import numpy as np
 
 from .block import Block, RunContext
 from .codegen import FILENAME, NodeCall, SlotPlan, compile_tick, gate_expr, generate
-from .errors import BlockError, GraphError, SemmapError
+from .errors import GraphError, SchemaViolation, SemmapError
 from .model import Endpoint, FlatGraph
 from .probes import Probe, save_probes
 from .schema import Port, value_mismatch
@@ -187,18 +187,18 @@ class Runner:
         schema: Port = self.schemas[Endpoint(node.path, port)]
         why = value_mismatch(schema, value)
         if why:
-            raise BlockError(f"output '{port}' broke its schema {schema.describe()}: {why}",
+            raise SchemaViolation(f"output '{port}' broke its schema {schema.describe()}: {why}",
                              node=node.path, file=node.origin.file, line=node.origin.line,
                              hint="This is a bug in the block (strict mode found it).")
 
     def _check_keys(self, index: int, out: Any) -> None:
         node = self.nodes[index]
         if not isinstance(out, dict):
-            raise BlockError(f"step returned {type(out).__name__}, not a dict of outputs",
+            raise SchemaViolation(f"step returned {type(out).__name__}, not a dict of outputs",
                              node=node.path, hint="This is a bug in the block.")
         unknown = set(out) - set(node.outputs)
         if unknown:
-            raise BlockError(f"step returned undeclared output(s) {sorted(unknown)}",
+            raise SchemaViolation(f"step returned undeclared output(s) {sorted(unknown)}",
                              node=node.path, hint="This is a bug in the block.")
 
     # ---- running ---------------------------------------------------------------------
