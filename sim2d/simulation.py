@@ -78,6 +78,8 @@ class Simulation:
         self.ticks = 0
         self._add_walls()
         self.robots: dict[str, RobotState] = {}
+        self._edges_tick = -1
+        self._edges: tuple = ()
         seeds = np.random.SeedSequence(seed).spawn(2 * max(1, len(robots)))
         for i, (name, spec, start) in enumerate(robots):
             self._add_robot(name, spec, start, seeds[2 * i], seeds[2 * i + 1])
@@ -226,17 +228,25 @@ class Simulation:
         return ranges, echo
 
     def _other_robot_edges(self, robot: RobotState, pose: np.ndarray, reach: float) -> np.ndarray:
-        rows = []
-        for other in self.robots.values():
-            if other is robot:
-                continue
-            op = other.pose
-            if math.hypot(op[0] - pose[0], op[1] - pose[1]) > reach + other.spec.radius:
-                continue
-            corners = [other.body.local_to_world(v) for v in other.shape.get_vertices()]
-            for a, b in zip(corners, corners[1:] + corners[:1]):
-                rows.append((a.x, a.y, b.x, b.y, 0.0))
-        return np.asarray(rows, dtype=np.float64).reshape(-1, 5)
+        """Body edges (as zero-radius capsules) of the other robots within ``reach``."""
+        if len(self.robots) < 2:
+            return np.zeros((0, 5))
+        if self._edges_tick != self.ticks:  # all robots' edges, once per physics step
+            names, centres, edges = [], [], []
+            for other in self.robots.values():
+                corners = np.array([tuple(other.body.local_to_world(v))
+                                    for v in other.shape.get_vertices()])
+                nxt = np.roll(corners, -1, axis=0)
+                edges.append(np.c_[corners, nxt, np.zeros(len(corners))])
+                centres.append(tuple(other.body.position))
+                names.append(other.name)
+            self._edges = (names, np.array(centres), np.stack(edges),
+                           np.array([o.spec.radius for o in self.robots.values()]))
+            self._edges_tick = self.ticks
+        names, centres, edges, radii = self._edges
+        near = np.hypot(centres[:, 0] - pose[0], centres[:, 1] - pose[1]) <= reach + radii
+        near[names.index(robot.name)] = False
+        return edges[near].reshape(-1, 5)
 
     def penetration(self, name: str) -> float:
         """How deep (m) the robot overlaps anything now; 0 when it touches nothing."""

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from blocks.core.errors import SemmapError
+from blocks.core.errors import GraphError, SemmapError
 from blocks.core.yamlsrc import LineDict, line_of, load_yaml_file
 
 
@@ -50,8 +50,8 @@ class Sign:
 
     def corners(self) -> np.ndarray:
         """The plate's 4 corners (x, y, z), left-to-right as seen from the front, top first."""
-        # Looking at the plate from the front, its left is to the right of the normal.
-        tx, ty = math.sin(self.facing), -math.cos(self.facing)  # left-to-right direction
+        # A viewer in front looks along -normal; their right is (-sin f, cos f).
+        tx, ty = -math.sin(self.facing), math.cos(self.facing)  # left-to-right direction
         hw, hh = self.width / 2, self.height / 2
         return np.array([
             [self.x - tx * hw, self.y - ty * hw, self.z + hh],
@@ -149,18 +149,21 @@ def segments_from_occupancy(occupied: np.ndarray, resolution: float,
 
 # ---- loading --------------------------------------------------------------------------------
 def _number(doc: LineDict, key: str, file: Path, default: Any = None, *,
-            positive: bool = False, lo: float | None = None, hi: float | None = None) -> float:
+            positive: bool = False, lo: float | None = None, hi: float | None = None,
+            where: str = "") -> float:
+    name = f"{where}.{key}" if where else key
     value = doc.get(key, default)
     if value is None:
-        raise WorldError(f"the world has no '{key}'", file=file, line=line_of(doc),
-                         field=key, hint=f"Add '{key}:' (see sim2d/worlds/*.yaml).")
+        owner = where or "the world"
+        raise WorldError(f"{owner} has no '{key}'", file=file, line=line_of(doc),
+                         field=name, hint=f"Add '{key}:' (see sim2d/worlds/*.yaml).")
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise WorldError(f"'{key}' must be a number, got {value!r}", file=file,
-                         line=line_of(doc, key), field=key)
+        raise WorldError(f"'{name}' must be a number, got {value!r}", file=file,
+                         line=line_of(doc, key), field=name)
     if positive and value <= 0 or lo is not None and value < lo or hi is not None and value > hi:
         bounds = "> 0" if positive else f"in [{lo}, {hi}]"
-        raise WorldError(f"'{key}' must be {bounds}, got {value!r}", file=file,
-                         line=line_of(doc, key), field=key)
+        raise WorldError(f"'{name}' must be {bounds}, got {value!r}", file=file,
+                         line=line_of(doc, key), field=name)
     return float(value)
 
 
@@ -196,9 +199,9 @@ def _signs(doc: LineDict, file: Path) -> list[Sign]:
                              field=f"signs[{i}].text")
         values = {}
         for key in ("x", "y", "facing"):
-            values[key] = _number(item, key, file)
+            values[key] = _number(item, key, file, where=f"signs[{i}]")
         for key, default in (("width", 0.6), ("height", 0.2), ("z", 1.2)):
-            values[key] = _number(item, key, file, default, positive=True)
+            values[key] = _number(item, key, file, default, positive=True, where=f"signs[{i}]")
         signs.append(Sign(text=text.strip(), x=values["x"], y=values["y"],
                           facing=math.radians(values["facing"]), width=values["width"],
                           height=values["height"], z=values["z"]))
@@ -230,7 +233,13 @@ WORLD_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "fre
 def load_world(path: str | Path) -> World:
     """Load a world file; every problem is a WorldError naming the file, line and field."""
     path = Path(path)
-    doc = load_yaml_file(path)
+    try:
+        doc = load_yaml_file(path)
+    except GraphError as exc:  # YAML syntax, duplicate keys, missing file: a world error here
+        raise WorldError(exc.message, file=exc.file, line=exc.line,
+                         hint=exc.hint if "include" not in (exc.hint or "") else
+                         "Give a world library name (see sim2d/worlds) or a path to a world "
+                         "YAML.") from None
     if not isinstance(doc, dict):
         raise WorldError("a world file must be a YAML mapping (map_server format)", file=path)
     for key in doc:
@@ -238,10 +247,10 @@ def load_world(path: str | Path) -> World:
             import difflib
             close = difflib.get_close_matches(str(key), WORLD_KEYS, n=1)
             raise WorldError(f"unknown world field {key!r}", file=path, line=line_of(doc, key),
-                             hint=f"Did you mean {close[0]!r}?" if close else
+                             field=str(key), hint=f"Did you mean {close[0]!r}?" if close else
                              f"Known fields: {', '.join(WORLD_KEYS)}.")
     if "image" not in doc and "walls" not in doc:
-        raise WorldError("the world has neither 'image' nor 'walls'", file=path,
+        raise WorldError("the world has neither 'image' nor 'walls'", file=path, field="image",
                          hint="Give a floor-plan image (map_server format) or a 'walls' list.")
     resolution = _number(doc, "resolution", path, 0.05 if "image" not in doc else None,
                          positive=True)
@@ -275,7 +284,7 @@ def load_world(path: str | Path) -> World:
     elif "start" in doc:
         starts = [_pose(doc["start"], path, line_of(doc, "start"), "start")]
     else:
-        raise WorldError("the world has no 'start: [x, y, theta]'", file=path,
+        raise WorldError("the world has no 'start: [x, y, theta]'", file=path, field="start",
                          hint="Add the robot's start pose in metres and radians.")
     world = World(name=str(doc.get("name") or path.stem), segments=np.vstack(segments),
                   signs=_signs(doc, path), starts=starts, resolution=resolution,
@@ -308,7 +317,19 @@ def read_grey_image(image_path: Path, world_file: Path, line: int | None) -> np.
 
 
 def world_is_occupied(world: World, x: float, y: float, margin: float = 0.0) -> bool:
-    """Is the point within ``margin`` of any wall capsule?"""
+    """Is the point inside a wall (an occupied pixel) or within ``margin`` of a wall capsule?
+
+    The capsules trace wall outlines only, so the inside of a thick wall needs the grid.
+    """
+    if world.occupied is not None:
+        h, w = world.occupied.shape
+        ox, oy, yaw = world.origin
+        c, s = math.cos(-yaw), math.sin(-yaw)
+        mx, my = c * (x - ox) - s * (y - oy), s * (x - ox) + c * (y - oy)
+        col, row = int(math.floor(mx / world.resolution)), h - 1 - int(
+            math.floor(my / world.resolution))
+        if 0 <= row < h and 0 <= col < w and world.occupied[row, col]:
+            return True
     if not len(world.segments):
         return False
     return bool(distance_to_segments(np.array([x, y]), world.segments).min() <= margin)

@@ -118,8 +118,8 @@ def load_yaml_file(path: str | Path) -> Any:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise GraphError("file not found", file=path,
-                         hint="Check the path; relative includes are resolved "
-                              "from the including file's folder.") from None
+                         hint="Check the path (relative paths start from the current "
+                              "folder, includes from the including file's folder).") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise GraphError(f"cannot read the file: {exc}", file=path) from None
     return load_yaml_text(text, path)
