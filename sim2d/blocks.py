@@ -232,3 +232,86 @@ class TruePose(_RobotBlock):
 
     def step(self, sim: Simulation) -> dict[str, Any]:
         return {"pose": self._robot(sim).pose}
+
+
+CAMERA_DYNAMICS = ("pan_rate_deg", "zoom_rate", "rate_hz")
+
+
+def camera_spec_of(robot_spec: Any):
+    """The robot's CameraSpec and head dynamics (pan rate, zoom rate, frame rate)."""
+    from .camera import CameraSpec
+    section = dict(robot_spec.camera)
+    dynamics = {key: float(section.pop(key)) for key in CAMERA_DYNAMICS if key in section}
+    spec = CameraSpec.from_dict(section, file=robot_spec.source)
+    return spec, {"pan_rate_deg": 90.0, "zoom_rate": 4.0, "rate_hz": 5.0, **dynamics}
+
+
+@block("sim2d.camera", category="sim2d")
+class Camera(_RobotBlock):
+    """The robot's PTZ camera: a rendered view of walls, door openings and sign plates.
+
+    Pan, tilt and zoom follow their commands at the head's slew rates (from the
+    robot file); the field of view narrows with zoom. Frames come at the camera
+    rate; ``fresh`` fires on each. ``visible`` lists the plates in view with
+    their true bearing and distance: ground truth for scoring, not for control.
+    """
+
+    inputs = {
+        "sim": SIM,
+        "pan": Port.scalar("float64", unit="rad", required=False, default=0.0,
+                           doc="pan command (CCW +, relative to the robot's heading)"),
+        "tilt": Port.scalar("float64", unit="rad", required=False, default=0.0,
+                            doc="tilt command (up +)"),
+        "zoom": Port.scalar("float64", required=False, default=1.0,
+                            doc="zoom command (focal length factor)"),
+    }
+    outputs = {
+        "image": Port(kind="image", dtype="uint8", shape=("H", "W", 3), frame="camera",
+                      doc="BGR frame"),
+        "pan": Port.scalar("float64", unit="rad", doc="current pan"),
+        "tilt": Port.scalar("float64", unit="rad", doc="current tilt"),
+        "zoom": Port.scalar("float64", doc="current zoom"),
+        "pose": Port.array("float64", (3,), unit=POSE_UNIT, frame="world",
+                           doc="camera x, y and viewing direction"),
+        "fresh": Port.event(doc="true on ticks with a new frame"),
+        "visible": Port.message(doc="ground truth: plates in view (text, bearing, distance, "
+                                    "viewing angle, bbox)"),
+    }
+    params = {"robot": ROBOT,
+              "rate_hz": Param(float, 0.0, "frames per second; 0 uses the robot's camera rate",
+                               min=0.0)}
+
+    def reset(self) -> None:
+        self._spec = None
+        self._next_time = 0.0
+        self._head = [0.0, 0.0, 1.0]  # pan, tilt, zoom
+
+    def _slew(self, pan: float, tilt: float, zoom: float) -> None:
+        from .camera import clamp_ptz
+        pan, tilt, zoom = clamp_ptz(self._spec, pan, tilt, zoom)
+        dt = self.ctx.dt
+        turn = math.radians(self._dyn["pan_rate_deg"]) * dt
+        self._head[0] += max(-turn, min(turn, pan - self._head[0]))
+        self._head[1] += max(-turn, min(turn, tilt - self._head[1]))
+        self._head[2] += max(-self._dyn["zoom_rate"] * dt,
+                             min(self._dyn["zoom_rate"] * dt, zoom - self._head[2]))
+
+    def step(self, sim: Simulation, pan: float = 0.0, tilt: float = 0.0,
+             zoom: float = 1.0) -> dict[str, Any]:
+        from .camera import camera_pose, render, visible_signs
+        robot = self._robot(sim)
+        if self._spec is None:
+            self._spec, self._dyn = camera_spec_of(robot.spec)
+        self._slew(float(pan if pan is not None else 0.0), float(tilt if tilt is not None else 0.0),
+                   float(zoom if zoom is not None else 1.0))
+        head = {"pan": self._head[0], "tilt": self._head[1], "zoom": self._head[2]}
+        rate = self.p.rate_hz or self._dyn["rate_hz"]
+        now = self.ctx.tick * self.ctx.dt
+        if rate > 0 and now + 1e-9 < self._next_time:
+            return {**head, "fresh": False}
+        self._next_time = now + (1.0 / rate if rate > 0 else 0.0)
+        cam = camera_pose(robot.pose, self._spec, self._head[0])
+        image = render(sim.world, cam, self._head[1], self._head[2], self._spec, self.rng)
+        seen = visible_signs(sim.world, cam, self._head[1], self._head[2], self._spec)
+        return {**head, "image": image, "pose": np.asarray(cam, dtype=np.float64),
+                "fresh": True, "visible": seen}

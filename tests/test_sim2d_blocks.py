@@ -199,3 +199,46 @@ def test_render_errors(cli, tmp_path):
     (tmp_path / "run.json").write_text(json.dumps({"metrics": {}}))
     result = cli("render", tmp_path)
     assert result.code == 2 and "no simulated world" in result.err
+
+
+CAMERA_GRAPH = """
+name: cam
+dt: 0.1
+steps: 30
+nodes:
+  - {id: world, type: sim2d.world, params: {world: office}}
+  - {id: pan, type: constant, params: {value: -0.9, unit: rad}}
+  - {id: tilt, type: constant, params: {value: 0.5, unit: rad}}
+  - {id: camera, type: sim2d.camera}
+  - {id: frames, type: recorder, trigger: camera.fresh}
+edges:
+  - world.sim -> camera.sim
+  - pan.value -> camera.pan
+  - tilt.value -> camera.tilt
+  - camera.image -> frames.x
+"""
+
+
+def test_camera_pans_at_head_rate_and_sees_the_sign(cli, tmp_path):
+    from blocks import load_probes
+    path = tmp_path / "cam.yaml"
+    path.write_text(CAMERA_GRAPH)
+    out = tmp_path / "cam"
+    result = cli("run", path, "--out", out, "-q", "--strict", "--record", "camera.pan",
+                 "--record", "camera.visible", "--record", "camera.fresh")
+    assert result.code == 0, result
+    probes = load_probes(out)
+    pan = probes["camera.pan"][1]
+    step = np.radians(90.0) * 0.1  # the ATRV-Mini head pans at 90 deg/s
+    assert pan[0] == pytest.approx(-step) and pan[3] == pytest.approx(-4 * step)
+    assert pan[-1] == pytest.approx(-0.9)
+    fresh = probes["camera.fresh"][1]
+    assert fresh.sum() == 15  # 5 frames/s at dt 0.1 for 3 s
+    visible = probes["camera.visible"][1][-1]
+    assert [v["text"] for v in visible] == ["MAIL ROOM"]
+    frames = np.load(out / "frames.npz")["values"]
+    assert frames.shape == (15, 240, 320, 3) and frames.dtype == np.uint8
+    x0, y0, x1, y1 = visible[0]["bbox"]
+    plate = frames[-1][y0:y1 + 1, x0:x1 + 1].mean(axis=2)
+    assert plate.max() > 200 and plate.min() < 80  # white plate, black letters
+    assert probes["camera.visible"][1][0] == []  # looking ahead at tick 0: no plate in view

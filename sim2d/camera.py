@@ -1,0 +1,804 @@
+"""A synthetic pan-tilt-zoom camera: a fast 2.5D raycaster over a :class:`~sim2d.world.World`.
+
+The renderer treats the world as walls of height ``spec.wall_height`` standing
+on a flat floor under a flat ceiling. Each image column casts one ray through
+all wall capsules at once (numpy, columns x segments); the nearest hit gives
+the column's wall depth and shading. Sign plates are textured quads, projected
+with the true pinhole model, occluded per column by the walls in front of
+them, and warped into the image. The image is then degraded with a
+range-dependent Gaussian blur and seeded Gaussian noise.
+
+Frames and conventions
+----------------------
+* World: REP-103, x forward, y left, yaw counter-clockwise (rad), SI units.
+* Camera frame: x forward (optical axis), y left, z up; the camera sits
+  ``spec.mount_z`` above the floor. Pan is counter-clockwise positive (rad),
+  tilt is **positive upwards** (rad), zoom is a focal-length multiplier.
+* Image: OpenCV pixel convention, pixel ``(u, v)`` centred at integer
+  coordinates, ``u`` to the right, ``v`` down, BGR ``uint8``. The principal
+  point is the image centre; tilt shifts it vertically by ``f * tan(tilt)``
+  (a small-tilt approximation of a pitching camera).
+
+Projection of a camera-frame point ``(x, y, z)`` (``z`` relative to the camera
+height)::
+
+    u = cx - f * y / x
+    v = cy - f * z / x,   cx = (W - 1) / 2,  cy = (H - 1) / 2 + f * tan(tilt)
+    f = (W / 2) / tan(hfov / 2) * zoom
+
+The renderer does not enforce the pan/tilt/zoom limits; :func:`clamp_ptz`
+does, for the blocks that drive the camera.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+import cv2
+import numpy as np
+
+from blocks.core.errors import SemmapError
+
+from .world import Sign, World
+
+__all__ = [
+    "CameraError",
+    "CameraSpec",
+    "camera_pose",
+    "cast_rays",
+    "clamp_ptz",
+    "focal_length",
+    "plate_corners",
+    "project_points",
+    "render",
+    "sign_plate_image",
+    "visible_signs",
+]
+
+NEAR = 0.05  # m: points closer than this to the image plane are not projected
+OCCLUSION_TOLERANCE = 0.15  # m: a wall this much in front of a plate still lets it show
+# (measured along the plate's normal, so a plate on a wall's centre line stays
+# visible at grazing angles; along the ray it is capped at this many times that)
+OCCLUSION_CAP = 4.0
+TEXTURE_WIDTH = 600  # px: width of the plate texture before warping
+
+# Colours (BGR, 0..255 before lighting) and lighting of the scene.
+WALL_BGR = np.array([150.0, 178.0, 196.0], dtype=np.float32)  # pale beige
+SKIRTING_BGR = np.array([60.0, 66.0, 74.0], dtype=np.float32)  # dark skirting board
+FLOOR_BGR = np.array([78.0, 98.0, 118.0], dtype=np.float32)  # grey-brown
+CEILING_BGR = np.array([205.0, 205.0, 200.0], dtype=np.float32)  # off-white
+SKIRTING_HEIGHT = 0.08  # m
+FLOOR_TILE = 0.6  # m: side of the floor's faint checker pattern
+BLUR_LEVELS = (0.0, 0.6, 1.2, 2.0, 3.0)  # px: sigmas blended per pixel (the last is the cap)
+_PALETTE = np.stack([FLOOR_BGR, CEILING_BGR, WALL_BGR, SKIRTING_BGR])  # by pixel class
+
+
+class CameraError(SemmapError):
+    """A camera description is malformed."""
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """Intrinsics, limits, mount and degradation of the synthetic PTZ camera.
+
+    Attributes
+    ----------
+    width, height : int
+        Image size (px).
+    hfov_deg : float
+        Horizontal field of view at zoom 1 (deg); it narrows as ``hfov / zoom``
+        in focal length, i.e. ``f = (width / 2) / tan(hfov / 2) * zoom``.
+    zoom_min, zoom_max : float
+        Zoom range (focal length multiplier).
+    pan_min_deg, pan_max_deg : float
+        Pan limits (deg, counter-clockwise positive).
+    tilt_min_deg, tilt_max_deg : float
+        Tilt limits (deg, positive up).
+    mount_x, mount_y : float
+        Position of the pan axis in the robot frame (m).
+    mount_z : float
+        Height of the optical centre above the floor (m).
+    max_range : float
+        Sign plates farther than this (m, horizontal) are neither drawn nor reported.
+    noise_std : float
+        Standard deviation of the additive Gaussian noise (grey levels).
+    blur_per_m : float
+        Gaussian blur sigma (px) per metre of depth at zoom 1; the sigma at
+        depth ``d`` is ``blur_per_m * d / zoom``. With the default 0.15, text
+        on a 0.6 x 0.2 m plate is readable to about 4 m at zoom 1, marginal at
+        6 m and a smear at 8-10 m, where zoom 2-3 makes it readable again.
+    wall_height : float
+        Height of the walls (m); the ceiling lies on top of them.
+    """
+
+    width: int = 320
+    height: int = 240
+    hfov_deg: float = 48.0
+    zoom_min: float = 1.0
+    zoom_max: float = 10.0
+    pan_min_deg: float = -170.0
+    pan_max_deg: float = 170.0
+    tilt_min_deg: float = -30.0
+    tilt_max_deg: float = 30.0
+    mount_x: float = 0.15
+    mount_y: float = 0.0
+    mount_z: float = 0.6
+    max_range: float = 12.0
+    noise_std: float = 3.0
+    blur_per_m: float = 0.15
+    wall_height: float = 2.5
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.width < 2 or self.height < 2:
+            problems.append(f"image size {self.width}x{self.height} must be at least 2x2")
+        if not 0 < self.hfov_deg < 180:
+            problems.append(f"hfov_deg {self.hfov_deg} must be in (0, 180)")
+        if not 0 < self.zoom_min <= self.zoom_max:
+            problems.append(f"zoom range [{self.zoom_min}, {self.zoom_max}] must be 0 < min <= max")
+        if self.pan_min_deg > self.pan_max_deg:
+            problems.append(f"pan range [{self.pan_min_deg}, {self.pan_max_deg}] is reversed")
+        if not -90 < self.tilt_min_deg <= self.tilt_max_deg < 90:
+            problems.append(f"tilt range [{self.tilt_min_deg}, {self.tilt_max_deg}] must lie "
+                            "in (-90, 90) and not be reversed")
+        if not 0 < self.mount_z < self.wall_height:
+            problems.append(f"mount_z {self.mount_z} must be between the floor and the "
+                            f"ceiling (wall_height {self.wall_height})")
+        for name in ("max_range",):
+            if getattr(self, name) <= 0:
+                problems.append(f"{name} must be > 0")
+        for name in ("noise_std", "blur_per_m"):
+            if getattr(self, name) < 0:
+                problems.append(f"{name} must be >= 0")
+        if problems:
+            raise CameraError("bad camera: " + "; ".join(problems))
+
+    @property
+    def hfov(self) -> float:
+        """Horizontal field of view at zoom 1 (rad)."""
+        return math.radians(self.hfov_deg)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any], *, file: Any = None,
+                  line: int | None = None) -> CameraSpec:
+        """Build a spec from a mapping (the ``camera:`` section of a robot YAML).
+
+        Keys are the field names; angles are in degrees in the keys ending in
+        ``_deg``. Missing keys keep their defaults.
+
+        Parameters
+        ----------
+        d : mapping
+            The values, e.g. ``{"hfov_deg": 60, "mount_z": 0.8}``.
+        file, line : optional
+            Where the mapping came from, for error messages.
+
+        Raises
+        ------
+        CameraError
+            On an unknown key, a value of the wrong type or an out-of-range value.
+        """
+        if not isinstance(d, Mapping):
+            raise CameraError(f"a camera must be a mapping of its parameters, got {d!r}",
+                              file=file, line=line)
+        known = {f.name: f for f in fields(cls)}
+        values: dict[str, Any] = {}
+        for key, value in d.items():
+            if key not in known:
+                import difflib
+                close = difflib.get_close_matches(str(key), list(known), n=1)
+                raise CameraError(f"unknown camera field {key!r}", file=file, line=line,
+                                  field=str(key),
+                                  hint=f"Did you mean {close[0]!r}?" if close else
+                                  f"Known fields: {', '.join(known)}.")
+            is_int = key in ("width", "height")
+            ok = (not isinstance(value, bool) and isinstance(value, (int, float))
+                  and math.isfinite(value) and (not is_int or float(value).is_integer()))
+            if not ok:
+                kind = "a whole number of pixels" if is_int else "a number"
+                raise CameraError(f"camera field {key!r} must be {kind}, got {value!r}",
+                                  file=file, line=line, field=str(key))
+            values[key] = int(value) if is_int else float(value)
+        try:
+            return cls(**values)
+        except CameraError as err:
+            raise CameraError(err.message, file=file, line=line) from None
+
+
+# ---- geometry -------------------------------------------------------------------------------
+def focal_length(spec: CameraSpec, zoom: float) -> float:
+    """Focal length (px) at a zoom: ``(width / 2) / tan(hfov / 2) * zoom``."""
+    if not zoom > 0:
+        raise ValueError(f"zoom must be > 0, got {zoom!r}")
+    return (spec.width / 2) / math.tan(spec.hfov / 2) * zoom
+
+
+def clamp_ptz(spec: CameraSpec, pan: float, tilt: float, zoom: float) -> tuple[float, float, float]:
+    """Clip a pan (rad), tilt (rad) and zoom command to the camera's limits."""
+    pan = min(max(pan, math.radians(spec.pan_min_deg)), math.radians(spec.pan_max_deg))
+    tilt = min(max(tilt, math.radians(spec.tilt_min_deg)), math.radians(spec.tilt_max_deg))
+    zoom = min(max(zoom, spec.zoom_min), spec.zoom_max)
+    return pan, tilt, zoom
+
+
+def camera_pose(robot_pose, spec: CameraSpec, pan: float = 0.0) -> tuple[float, float, float]:
+    """World pose ``(x, y, yaw)`` of the camera on a robot.
+
+    Parameters
+    ----------
+    robot_pose : (x, y, theta)
+        The robot's pose in the world (m, m, rad).
+    spec : CameraSpec
+        Gives the mount position in the robot frame.
+    pan : float
+        Pan angle (rad, counter-clockwise positive) added to the robot's heading.
+    """
+    x, y, theta = (float(v) for v in robot_pose)
+    c, s = math.cos(theta), math.sin(theta)
+    return (x + c * spec.mount_x - s * spec.mount_y,
+            y + s * spec.mount_x + c * spec.mount_y,
+            theta + pan)
+
+
+def _intrinsics(spec: CameraSpec, tilt: float, zoom: float) -> tuple[float, float, float]:
+    f = focal_length(spec, zoom)
+    return f, (spec.width - 1) / 2, (spec.height - 1) / 2 + f * math.tan(tilt)
+
+
+def project_points(points: np.ndarray, cam_pose, tilt: float, zoom: float,
+                   spec: CameraSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Project world points ``(N, 3)`` (x, y, z above the floor) into the image.
+
+    Returns
+    -------
+    u, v : ndarray (N,)
+        Pixel coordinates (meaningless where ``depth <= 0``).
+    depth : ndarray (N,)
+        Forward distance along the optical axis (m); negative behind the camera.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    px, py, yaw = cam_pose
+    f, cx, cy = _intrinsics(spec, tilt, zoom)
+    dx, dy = p[:, 0] - px, p[:, 1] - py
+    c, s = math.cos(yaw), math.sin(yaw)
+    xc = c * dx + s * dy
+    yc = -s * dx + c * dy
+    zc = p[:, 2] - spec.mount_z
+    safe = np.where(np.abs(xc) > 1e-12, xc, 1e-12)
+    return cx - f * yc / safe, cy - f * zc / safe, xc
+
+
+def cast_rays(origin, angles: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest wall hit along each ray, all rays against all capsules at once.
+
+    A capsule is modelled by its face towards the origin (the centre segment
+    offset by the radius), extended by the radius at ends shared with another
+    segment (so convex corners close), plus a round cap at each free end and
+    for zero-length segments (posts). When the rays span less than a half
+    turn, segments wholly outside their wedge are skipped first.
+
+    Parameters
+    ----------
+    origin : (x, y)
+        Where the rays start (m); assumed outside every capsule.
+    angles : ndarray (R,)
+        World directions of the rays (rad).
+    segments : ndarray (S, 5)
+        Capsules x1, y1, x2, y2, radius (m).
+
+    Returns
+    -------
+    distance : ndarray (R,)
+        Distance along the ray to the first surface hit (m), ``inf`` for none.
+    incidence : ndarray (R,)
+        ``|cos|`` of the angle between the ray and the surface normal at the
+        hit (1 = head-on, 0 = grazing); 0 where nothing is hit.
+    """
+    angles = np.asarray(angles, dtype=np.float64).reshape(-1)
+    n_rays = angles.shape[0]
+    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 5)
+    ox, oy = float(origin[0]), float(origin[1])
+    if len(seg) and n_rays:
+        seg = _cull(seg, ox, oy, angles)
+    if len(seg) == 0 or n_rays == 0:
+        return np.full(n_rays, np.inf), np.zeros(n_rays)
+    ax, ay = seg[:, 0] - ox, seg[:, 1] - oy  # relative to the origin
+    bx, by = seg[:, 2] - ox, seg[:, 3] - oy
+    r = seg[:, 4]
+    ex, ey = bx - ax, by - ay
+    length = np.hypot(ex, ey)
+    has_length = length > 1e-9
+    inv_len = np.where(has_length, 1.0 / np.where(has_length, length, 1.0), 0.0)
+    nx, ny = -ey * inv_len, ex * inv_len  # unit normal (left of a -> b)
+    side = np.where(-(ax * nx + ay * ny) >= 0, 1.0, -1.0)  # the face towards the origin
+    qx, qy = ax + side * r * nx, ay + side * r * ny
+    shared_a, shared_b, caps = _shared_ends(seg, has_length)
+    # (and 10 um more everywhere, so float32 rounding opens no pinholes at joints)
+    s_lo = np.where(shared_a, -r * inv_len, 0.0) - 1e-5 * inv_len
+    s_hi = np.where(shared_b, 1.0 + r * inv_len, 1.0) + 1e-5 * inv_len
+    s_lo[~has_length], s_hi[~has_length] = 2.0, -1.0  # no face for posts
+    f32 = np.float32
+    dx, dy = np.cos(angles).astype(f32)[:, None], np.sin(angles).astype(f32)[:, None]
+    ex32, ey32, qx32, qy32 = (v.astype(f32) for v in (ex, ey, qx, qy))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # faces: t*d = q + s*e
+        denom = dx * ey32 - dy * ex32  # (R, S)
+        inv = f32(1.0) / denom
+        t_face = (qx * ey - qy * ex).astype(f32) * inv
+        s_face = (qx32 * dy - qy32 * dx) * inv
+        ok = (t_face > 0) & (s_face >= s_lo.astype(f32)) & (s_face <= s_hi.astype(f32))
+        t_face = np.where(ok, t_face, f32(np.inf))
+        cos_face = np.abs(denom) * inv_len.astype(f32)
+        t_parts, cos_parts = [t_face], [cos_face]
+        if len(caps):
+            cx_, cy_, cr = (caps[:, i] - o for i, o in ((0, ox), (1, oy), (2, 0.0)))
+            cx32, cy32 = cx_.astype(f32), cy_.astype(f32)
+            proj = dx * cx32 + dy * cy32  # (R, K): along the ray
+            perp = dx * cy32 - dy * cx32  # across it (no cancellation, unlike |c|^2 - proj^2)
+            disc = (cr * cr).astype(f32) - perp * perp
+            root = np.sqrt(np.maximum(disc, f32(0)))
+            t_cap = proj - root
+            t_parts.append(np.where((disc >= 0) & (t_cap > 0), t_cap, f32(np.inf)))
+            cos_parts.append(root / np.where(cr > 0, cr, 1.0).astype(f32))
+    t_all = np.concatenate(t_parts, axis=1) if len(t_parts) > 1 else t_parts[0]
+    best = np.argmin(t_all, axis=1)
+    rows = np.arange(n_rays)
+    distance = t_all[rows, best].astype(np.float64)
+    cos_all = np.concatenate(cos_parts, axis=1) if len(cos_parts) > 1 else cos_parts[0]
+    incidence = np.where(np.isfinite(distance), cos_all[rows, best], 0.0)
+    return distance, np.clip(incidence, 0.0, 1.0)
+
+
+def _cull(seg: np.ndarray, ox: float, oy: float, angles: np.ndarray) -> np.ndarray:
+    """Drop the capsules wholly outside the wedge the rays span (if under a half turn)."""
+    rel = np.angle(np.exp(1j * (angles - angles[0])))
+    lo, hi = float(rel.min()), float(rel.max())
+    half = (hi - lo) / 2
+    if half >= math.pi / 2 - 1e-3:
+        return seg
+    mid = angles[0] + lo + half
+    c, s = math.cos(mid), math.sin(mid)
+    sh, ch = math.sin(half), math.cos(half)
+    margin = seg[:, 4] + 1e-4
+    out_left = np.ones(len(seg), dtype=bool)
+    out_right = np.ones(len(seg), dtype=bool)
+    for i in (0, 2):
+        px, py = seg[:, i] - ox, seg[:, i + 1] - oy
+        x, y = c * px + s * py, -s * px + c * py  # in the wedge's frame
+        out_left &= x * sh - y * ch < -margin
+        out_right &= x * sh + y * ch < -margin
+    return seg[~(out_left | out_right)]
+
+
+def _shared_ends(seg: np.ndarray, has_length: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which segment ends touch another segment's end, and the round caps still needed.
+
+    Returns ``shared_a``, ``shared_b`` (S,) bool and ``caps`` (K, 3): x, y,
+    radius of the free ends and of the zero-length segments.
+    """
+    n = len(seg)
+    ends = np.concatenate([seg[:, 0:2], seg[:, 2:4]])  # a's then b's
+    keys = np.round(ends * 1e5).astype(np.int64)
+    keys = keys[:, 0] * 1_000_003 + keys[:, 1]
+    valid = np.concatenate([has_length, has_length])
+    _, inverse, counts = np.unique(np.where(valid, keys, -1 - np.arange(2 * n)),
+                                   return_inverse=True, return_counts=True)
+    shared = (counts[inverse] > 1) & valid
+    shared_a, shared_b = shared[:n], shared[n:]
+    radius = np.concatenate([seg[:, 4], seg[:, 4]])
+    free = valid & ~shared & (radius > 0)
+    posts = ~has_length & (seg[:, 4] > 0)
+    caps = np.concatenate([
+        np.column_stack([ends[free], radius[free]]),
+        np.column_stack([seg[posts, 0:2], seg[posts, 4]]),
+    ])
+    return shared_a, shared_b, caps
+
+
+# ---- sign plates ---------------------------------------------------------------------------
+def sign_plate_image(text: str, width_px: int = TEXTURE_WIDTH, height_px: int = 200) -> np.ndarray:
+    """The texture of a sign plate: black text centred on a light plate with a dark border.
+
+    Parameters
+    ----------
+    text : str
+        The sign's text (one line; fitted to the plate, letters at most 60 %
+        of the plate height).
+    width_px, height_px : int
+        Texture size (px).
+
+    Returns
+    -------
+    ndarray (height_px, width_px, 3) uint8, BGR.
+    """
+    w, h = int(width_px), int(height_px)
+    if w < 4 or h < 4:
+        raise ValueError(f"a plate texture needs at least 4x4 px, got {w}x{h}")
+    img = np.full((h, w, 3), 238, dtype=np.uint8)
+    border = max(1, round(0.05 * min(w, h)))
+    cv2.rectangle(img, (0, 0), (w - 1, h - 1), (40, 40, 40), thickness=border * 2)
+    text = " ".join(str(text).split())
+    if not text:
+        return img
+    font = cv2.FONT_HERSHEY_DUPLEX
+    (tw, th), _ = cv2.getTextSize(text, font, 1.0, 1)
+    inner_w, inner_h = w - 8 * border, h - 4 * border
+    scale = min(0.6 * h / max(th, 1), inner_w / max(tw, 1), inner_h / max(th, 1))
+    thickness = max(1, round(scale * 1.6))
+    (tw, th), _base = cv2.getTextSize(text, font, scale, thickness)
+    org = ((w - tw) // 2, (h + th) // 2)
+    cv2.putText(img, text, org, font, scale, (15, 15, 15), thickness, cv2.LINE_AA)
+    return img
+
+
+@functools.lru_cache(maxsize=64)  # ~0.5 MB each
+def _plate_mipmaps(text: str, width_px: int, height_px: int) -> tuple[np.ndarray, ...]:
+    """The texture and its successive INTER_AREA halvings (for anti-aliased warping)."""
+    base = sign_plate_image(text, width_px, height_px)
+    base.setflags(write=False)
+    levels = [base]
+    while levels[-1].shape[1] > 16 and levels[-1].shape[0] > 8:
+        prev = levels[-1]
+        half = cv2.resize(prev, (max(1, prev.shape[1] // 2), max(1, prev.shape[0] // 2)),
+                          interpolation=cv2.INTER_AREA)
+        half.setflags(write=False)
+        levels.append(half)
+    return tuple(levels)
+
+
+def plate_corners(sign: Sign) -> np.ndarray:
+    """The plate's corners (4, 3), top-left, top-right, bottom-right, bottom-left as seen
+    by someone facing it.
+
+    Uses :meth:`Sign.corners` but checks its left/right order against the
+    plate's normal (a viewer facing the plate looks along ``-normal``, so
+    their left is ``(sin facing, -cos facing)``) and swaps it if needed, so
+    the text is never drawn mirrored.
+    """
+    corners = np.asarray(sign.corners(), dtype=np.float64)
+    left = np.array([math.sin(sign.facing), -math.cos(sign.facing)])
+    if float((corners[0, :2] - corners[1, :2]) @ left) < 0:
+        corners = corners[[1, 0, 3, 2]]
+    return corners
+
+
+def _tolerance_along_ray(cos_incidence):
+    """How far (m, along the ray) a wall may stand in front of a plate without hiding it."""
+    cos_incidence = np.maximum(cos_incidence, 1e-3)
+    return np.minimum(OCCLUSION_TOLERANCE / cos_incidence, OCCLUSION_CAP * OCCLUSION_TOLERANCE)
+
+
+def _column_angles(spec: CameraSpec, f: float) -> np.ndarray:
+    """Ray angle of each image column in the camera frame (rad, CCW +, left is +)."""
+    cx = (spec.width - 1) / 2
+    return np.arctan2(cx - np.arange(spec.width, dtype=np.float64), f)
+
+
+@dataclass
+class _PlateView:
+    index: int
+    sign: Sign
+    bearing: float
+    distance: float
+    viewing_angle: float
+    corners: np.ndarray  # (4, 2) px, unclipped
+    depth: float  # forward depth of the centre (m)
+    columns: np.ndarray  # (W,) bool: columns where the plate is in front of the walls
+    visible_fraction: float
+    bbox: tuple[int, int, int, int]
+
+
+def _plate_views(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
+                 wall_t: np.ndarray, col_angles: np.ndarray) -> list[_PlateView]:
+    """Every plate that is at least partly visible, with its projection and occlusion."""
+    px, py, yaw = cam_pose
+    width, height = spec.width, spec.height
+    views = []
+    for i, sign in enumerate(world.signs):
+        to_cam = np.array([px - sign.x, py - sign.y])
+        distance = float(np.hypot(*to_cam))
+        if distance <= 1e-9 or distance > spec.max_range:
+            continue
+        normal = np.array([math.cos(sign.facing), math.sin(sign.facing)])
+        cos_view = float(normal @ to_cam) / distance
+        if cos_view <= 0:
+            continue  # seen from behind or edge-on
+        corners3 = plate_corners(sign)
+        u, v, depth = project_points(corners3, cam_pose, tilt, zoom, spec)
+        if np.any(depth < NEAR):
+            continue
+        if u.max() < -0.5 or u.min() > width - 0.5 or v.max() < -0.5 or v.min() > height - 0.5:
+            continue
+        # line of sight to the centre
+        los_angle = math.atan2(sign.y - py, sign.x - px)
+        t_los, _ = cast_rays((px, py), np.array([los_angle]), world.segments)
+        if t_los[0] < distance - _tolerance_along_ray(cos_view):
+            continue
+        # per-column occlusion: where does each column's ray meet the plate's line?
+        tx, ty = math.sin(sign.facing), -math.cos(sign.facing)
+        lo = max(0, math.ceil(u.min() - 0.5))
+        hi = min(width - 1, math.floor(u.max() + 0.5))
+        columns = np.zeros(width, dtype=bool)
+        if hi < lo:  # narrower than a column: take the nearest one
+            lo = hi = round(float(u.mean()))
+        if 0 <= lo <= hi < width:
+            a = yaw + col_angles[lo:hi + 1]
+            dx, dy = np.cos(a), np.sin(a)
+            sx, sy = sign.x - px, sign.y - py
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t_plate = (sx * ty - sy * tx) / (dx * ty - dy * tx)
+            tol = _tolerance_along_ray(np.abs(dx * normal[0] + dy * normal[1]))
+            columns[lo:hi + 1] = ~(wall_t[lo:hi + 1] < t_plate - tol)
+        span = max(float(u.max() - u.min()), 1.0)
+        rows_in = max(0.0, min(v.max(), height - 0.5) - max(v.min(), -0.5))
+        fraction = min(1.0, columns.sum() / span) * min(1.0, rows_in / max(v.max() - v.min(), 1.0))
+        if fraction <= 0:
+            continue
+        visible_cols = np.flatnonzero(columns)
+        bbox = (int(visible_cols.min()), int(max(0, math.floor(v.min() + 0.5))),
+                int(visible_cols.max()), int(min(height - 1, math.floor(v.max() + 0.5))))
+        c, s = math.cos(yaw), math.sin(yaw)
+        rel = (sign.x - px, sign.y - py)
+        bearing = math.atan2(-s * rel[0] + c * rel[1], c * rel[0] + s * rel[1])
+        _, _, centre_depth = project_points(np.array([[sign.x, sign.y, sign.z]]), cam_pose,
+                                            tilt, zoom, spec)
+        views.append(_PlateView(
+            index=i, sign=sign, bearing=bearing, distance=distance,
+            viewing_angle=math.acos(min(1.0, cos_view)), corners=np.stack([u, v], axis=1),
+            depth=float(centre_depth[0]), columns=columns, visible_fraction=float(fraction),
+            bbox=bbox))
+    return views
+
+
+def visible_signs(world: World, cam_pose, tilt: float, zoom: float,
+                  spec: CameraSpec) -> list[dict[str, Any]]:
+    """Ground truth: the sign plates the camera sees, as :func:`render` draws them.
+
+    A plate is reported when it faces the camera, its centre is within
+    ``spec.max_range`` (horizontal distance) and not behind a wall, none of
+    its corners is behind the image plane, and some of it falls inside the
+    image in front of the walls (a wall up to 0.15 m in front of the plate,
+    along its normal, does not hide it: plates hang on walls).
+
+    Parameters
+    ----------
+    world : World
+    cam_pose : (x, y, yaw)
+        Camera pose in the world (see :func:`camera_pose`).
+    tilt : float
+        Tilt (rad, positive up).
+    zoom : float
+        Zoom factor.
+    spec : CameraSpec
+
+    Returns
+    -------
+    list of dict, in ``world.signs`` order, with keys
+
+    ``index`` (int)
+        Position in ``world.signs``.
+    ``text`` (str)
+    ``bearing`` (float, rad)
+        Direction of the plate's centre in the camera frame, CCW positive (left).
+    ``distance`` (float, m)
+        Horizontal distance from the camera to the plate's centre.
+    ``depth`` (float, m)
+        Forward depth of the plate's centre along the optical axis.
+    ``viewing_angle`` (float, rad)
+        Angle between the plate's normal and the line of sight (0 = head-on).
+    ``bbox`` (tuple of int)
+        ``(x0, y0, x1, y1)``: inclusive pixel box of the visible part.
+    ``apparent_width``, ``apparent_height`` (float, px)
+        Horizontal and vertical extent of the whole projected plate (unclipped).
+    ``corners`` (ndarray (4, 2), px)
+        Projected corners, top-left, top-right, bottom-right, bottom-left as
+        seen from the front (unclipped).
+    ``visible_fraction`` (float)
+        Share of the plate inside the image and not hidden by walls (0..1].
+    """
+    f = focal_length(spec, zoom)
+    angles = _column_angles(spec, f)
+    wall_t, _ = cast_rays(cam_pose[:2], cam_pose[2] + angles, world.segments)
+    out = []
+    for view in _plate_views(world, cam_pose, tilt, zoom, spec, wall_t, angles):
+        u, v = view.corners[:, 0], view.corners[:, 1]
+        out.append({
+            "index": view.index, "text": view.sign.text, "bearing": view.bearing,
+            "distance": view.distance, "depth": view.depth,
+            "viewing_angle": view.viewing_angle, "bbox": view.bbox,
+            "apparent_width": float(u.max() - u.min()),
+            "apparent_height": float(v.max() - v.min()),
+            "corners": view.corners.copy(), "visible_fraction": view.visible_fraction,
+        })
+    return out
+
+
+# ---- rendering -----------------------------------------------------------------------------
+def _light(depth: np.ndarray) -> np.ndarray:
+    """Fall-off of the scene's brightness with distance (1 at the camera)."""
+    return 1.0 / (1.0 + 0.045 * depth)
+
+
+def render(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
+           rng: np.random.Generator) -> np.ndarray:
+    """Render the camera image.
+
+    Parameters
+    ----------
+    world : World
+        Walls (capsules) and sign plates.
+    cam_pose : (x, y, yaw)
+        Camera pose in the world (m, m, rad); see :func:`camera_pose`.
+    tilt : float
+        Tilt (rad, positive up).
+    zoom : float
+        Zoom factor (> 0); the horizontal field of view is
+        ``2 * atan(tan(hfov / 2) / zoom)``.
+    spec : CameraSpec
+    rng : numpy.random.Generator
+        Source of the image noise; the image is a deterministic function of
+        the scene and the generator's state.
+
+    Returns
+    -------
+    ndarray (height, width, 3) uint8
+        BGR image: floor, walls (shaded by distance and by their angle to the
+        ray, with a dark skirting board) and ceiling, sign plates, then a
+        depth-dependent Gaussian blur (sigma ``blur_per_m * depth / zoom``)
+        and Gaussian noise (``noise_std``).
+    """
+    W, H = spec.width, spec.height
+    f, cx, cy = _intrinsics(spec, tilt, zoom)
+    px, py, yaw = (float(v) for v in cam_pose)
+    cam_z = spec.mount_z
+    angles = _column_angles(spec, f)
+    wall_t, incidence = cast_rays((px, py), yaw + angles, world.segments)
+    cos_a = np.cos(angles)
+    wall_d = wall_t * cos_a  # forward depth per column
+    hit = np.isfinite(wall_d)
+    safe_d = np.where(hit, wall_d, 1.0)
+    v_top = np.where(hit, cy - f * (spec.wall_height - cam_z) / safe_d, cy)  # (W,)
+    v_bot = np.where(hit, cy + f * cam_z / safe_d, cy)
+
+    f32 = np.float32
+    rows = np.arange(H, dtype=f32)[:, None]  # (H, 1)
+    is_floor = rows > v_bot.astype(f32)[None, :]  # (H, W)
+    is_ceiling = rows < v_top.astype(f32)[None, :]
+    v_skirt = np.where(hit, cy + f * (cam_z - SKIRTING_HEIGHT) / safe_d, np.inf).astype(f32)
+    is_skirting = (rows > v_skirt[None, :]) & ~is_floor
+
+    # walls: depth per column, shaded by their angle to the ray and by distance
+    far = np.where(hit, wall_d, 1e3)
+    shade = np.empty((H, W), f32)
+    shade[:] = ((0.4 + 0.6 * incidence) * _light(far)).astype(f32)[None, :]
+    depth = np.empty((H, W), f32)
+    depth[:] = far.astype(f32)[None, :]
+    cls = np.full((H, W), 2, dtype=np.uint8)  # 0 floor, 1 ceiling, 2 wall, 3 skirting
+    cls[is_skirting] = 3
+
+    # floor (rows under the horizon): depth per row, faint checker in world coordinates
+    r0 = min(H, max(0, math.floor(cy) + 1))
+    if r0 < H:
+        floor_d = (f * cam_z / np.maximum(rows[r0:] - f32(cy), f32(1e-3))).astype(f32)  # (h, 1)
+        floor_d = np.minimum(floor_d, f32(1e3))
+        lateral = floor_d * ((cx - np.arange(W, dtype=f32)) / f32(f))[None, :]  # (h, W)
+        c, s = math.cos(yaw), math.sin(yaw)
+        fx = (f32(px / FLOOR_TILE) + floor_d * f32(c / FLOOR_TILE) - lateral * f32(s / FLOOR_TILE))
+        fy = (f32(py / FLOOR_TILE) + floor_d * f32(s / FLOOR_TILE) + lateral * f32(c / FLOOR_TILE))
+        checker = ((np.floor(fx) + np.floor(fy)) % 2) * f32(2) - f32(1)
+        floor_shade = _light(floor_d) * (f32(1) + f32(0.07) * np.exp(-floor_d / f32(4)) * checker)
+        mask = is_floor[r0:]
+        np.copyto(shade[r0:], floor_shade, where=mask)
+        np.copyto(depth[r0:], np.broadcast_to(floor_d, mask.shape), where=mask)
+        cls[r0:][mask] = 0
+    # ceiling (rows over the horizon)
+    r1 = min(H, max(0, math.ceil(cy)))
+    if r1 > 0:
+        ceil_d = (f * (spec.wall_height - cam_z) / np.maximum(f32(cy) - rows[:r1], f32(1e-3)))
+        ceil_d = np.minimum(ceil_d.astype(f32), f32(1e3))
+        mask = is_ceiling[:r1]
+        np.copyto(shade[:r1], np.broadcast_to(f32(0.95) * _light(ceil_d), mask.shape), where=mask)
+        np.copyto(depth[:r1], np.broadcast_to(ceil_d, mask.shape), where=mask)
+        cls[:r1][mask] = 1
+    img = cv2.multiply(_PALETTE.take(cls, axis=0), cv2.merge([shade, shade, shade]))
+
+    # sign plates, far to near
+    views = _plate_views(world, (px, py, yaw), tilt, zoom, spec, wall_t, angles)
+    for view in sorted(views, key=lambda vw: -vw.depth):
+        _draw_plate(img, depth, view, spec)
+
+    # range-dependent blur, then noise
+    sigma = spec.blur_per_m * np.minimum(depth, 1e3) / zoom
+    img = _depth_blur(img, sigma)
+    if spec.noise_std > 0:
+        img += _gaussian_noise(img.shape, spec.noise_std, rng)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def _gaussian_noise(shape: tuple[int, ...], std: float, rng: np.random.Generator) -> np.ndarray:
+    """Gaussian noise, float32, drawn by OpenCV's (thread-local) RNG seeded from ``rng``.
+
+    Three times faster than numpy's normal sampler; one 31-bit draw from
+    ``rng`` fixes the whole noise field, so the result is a deterministic
+    function of ``rng``'s state.
+    """
+    noise = np.empty(shape, dtype=np.float32)
+    channels = shape[2] if len(shape) == 3 else 1
+    cv2.setRNGSeed(int(rng.integers(1, 2**31 - 1)))
+    cv2.randn(noise, (0.0,) * channels, (float(std),) * channels)
+    return noise
+
+
+def _draw_plate(img: np.ndarray, depth: np.ndarray, view: _PlateView, spec: CameraSpec) -> None:
+    """Warp a plate's texture into ``img`` (in place), hidden where walls are in front."""
+    sign = view.sign
+    tex_h = max(8, round(TEXTURE_WIDTH * sign.height / sign.width))
+    levels = _plate_mipmaps(sign.text, TEXTURE_WIDTH, tex_h)
+    corners = view.corners.astype(np.float64)
+    edge = max(np.hypot(*(corners[1] - corners[0])), np.hypot(*(corners[2] - corners[3])))
+    tex = levels[0]
+    for level in levels:  # the smallest level still at least 1.5x the apparent size
+        if level.shape[1] >= 1.5 * edge:
+            tex = level
+    th, tw = tex.shape[:2]
+    src = np.array([[-0.5, -0.5], [tw - 0.5, -0.5], [tw - 0.5, th - 0.5], [-0.5, th - 0.5]],
+                   dtype=np.float32)
+    M = cv2.getPerspectiveTransform(src, corners.astype(np.float32))
+    # warp only the plate's bounding box (plus a margin) to keep it cheap
+    W, H = spec.width, spec.height
+    x0 = max(0, math.floor(corners[:, 0].min()) - 1)
+    x1 = min(W, math.ceil(corners[:, 0].max()) + 2)
+    y0 = max(0, math.floor(corners[:, 1].min()) - 1)
+    y1 = min(H, math.ceil(corners[:, 1].max()) + 2)
+    if x1 <= x0 or y1 <= y0:
+        return
+    shift = np.array([[1, 0, -x0], [0, 1, -y0], [0, 0, 1]], dtype=np.float64)
+    M = shift @ M
+    size = (x1 - x0, y1 - y0)
+    plate = cv2.warpPerspective(tex, M, size, flags=cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0))
+    mask = cv2.warpPerspective(np.full((th, tw), 255, np.uint8), M, size, flags=cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    alpha = mask.astype(np.float32) / 255.0 * view.columns[None, x0:x1]
+    shade = float(_light(np.array(view.depth))) * (0.75 + 0.25 * math.cos(view.viewing_angle))
+    region = img[y0:y1, x0:x1]
+    a = alpha[..., None]
+    region *= 1.0 - a
+    region += a * plate.astype(np.float32) * np.float32(shade)
+    depth[y0:y1, x0:x1] = np.where(alpha > 0.5, np.float32(view.depth), depth[y0:y1, x0:x1])
+
+
+def _depth_blur(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Blur each pixel with its own sigma (px), interpolating between a few fixed-sigma blurs.
+
+    Sigmas are capped at the last of ``BLUR_LEVELS``; the larger blurs run at
+    half resolution (they keep no detail a full-resolution blur would).
+    """
+    f32 = np.float32
+    sigma = np.minimum(sigma, f32(BLUR_LEVELS[-1]))
+    top = next((k for k, level in enumerate(BLUR_LEVELS) if level >= float(sigma.max())),
+               len(BLUR_LEVELS) - 1)
+    out = img
+    half = None
+    for k in range(1, top + 1):
+        level, lo = BLUR_LEVELS[k], BLUR_LEVELS[k - 1]
+        if level >= 1.6:
+            if half is None:
+                half = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2),
+                                  interpolation=cv2.INTER_AREA)
+            # the 2x2 box average already blurred by ~0.5 px (full resolution)
+            small = cv2.GaussianBlur(half, (0, 0), math.sqrt(level ** 2 - 0.25) / 2,
+                                     borderType=cv2.BORDER_REFLECT)
+            blurred = cv2.resize(small, (img.shape[1], img.shape[0]),
+                                 interpolation=cv2.INTER_LINEAR)
+        else:
+            blurred = cv2.GaussianBlur(img, (0, 0), level, borderType=cv2.BORDER_REFLECT)
+        # piecewise-linear in sigma: pixels past this level take it whole
+        frac = np.clip((sigma - f32(lo)) * f32(1.0 / (level - lo)), 0, 1)
+        out = cv2.blendLinear(out, blurred, f32(1) - frac, frac)
+    return out
+
