@@ -22,10 +22,14 @@ $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
 venv: $(VENV)/.installed
 venv-dev: $(VENV)/.installed-dev
 
+# The main job on the default world (office). Until the exploration pipeline
+# lands, that is the reactive wanderer in graphs/examples/wander.yaml.
 demo: venv
-	$(BIN)/semmap run graphs/demo.yaml --out $(OUT) --record smooth.y
-	$(BIN)/semmap graph graphs/demo.yaml --format png -o $(OUT)/graph.png
-	@echo "Outputs are in $(OUT)/: run.json, signals.png, graph.png, readings.csv, probes.npz"
+	$(BIN)/semmap run graphs/examples/wander.yaml --out $(OUT) --record sonar.ranges
+	$(BIN)/semmap render $(OUT) --gif
+	$(BIN)/semmap graph graphs/examples/wander.yaml --format png -o $(OUT)/graph.png
+	@echo "Outputs are in $(OUT)/: render.png and run.gif (the run), velocity_plot.png,"
+	@echo "graph.png (the pipeline), trajectory.csv, sonar.npz, probes.npz and run.json."
 
 test: venv-dev
 	$(BIN)/python -m pytest -q -n 2

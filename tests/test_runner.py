@@ -371,3 +371,41 @@ def test_generated_schedule_is_readable(write):
     """)
     source = Runner(load_graph(path)).tick_source
     assert "# c (counter, step)" in source and "t % 2 == 0" in source
+
+
+def test_select_and_switch(write):
+    path = write("g.yaml", """
+        nodes:
+          - {id: arr, type: constant, params: {value: [3.0, 1.0, 2.0, 5.0]}}
+          - {id: pick, type: select, params: {indices: [0, 2]}}
+          - {id: nearest, type: select, params: {indices: [0, 1, 2], reduce: min}}
+          - {id: close, type: threshold, params: {level: 1.5, direction: below}}
+          - {id: yes, type: constant, params: {value: 10.0}}
+          - {id: no, type: constant, params: {value: 20.0}}
+          - {id: choose, type: switch}
+        edges:
+          - arr.value -> pick.x
+          - arr.value -> nearest.x
+          - nearest.y -> close.x
+          - close.on -> choose.when
+          - yes.value -> choose.a
+          - no.value -> choose.b
+    """)
+    runner = Runner(load_graph(path), strict=True)
+    runner.run(1)
+    assert runner.value("pick.y").tolist() == [3.0, 2.0]
+    assert runner.value("nearest.y") == 1.0 and isinstance(runner.value("nearest.y"), float)
+    assert runner.value("choose.y") == 10.0
+
+
+def test_select_index_out_of_range_is_a_user_error(write):
+    path = write("g.yaml", """
+        nodes:
+          - {id: arr, type: constant, params: {value: [1.0, 2.0]}}
+          - {id: pick, type: select, params: {indices: [5]}}
+        edges:
+          - arr.value -> pick.x
+    """)
+    with pytest.raises(SemmapError) as info:
+        Runner(load_graph(path)).run(1)
+    assert "index out of range" in str(info.value) and info.value.node == "pick"

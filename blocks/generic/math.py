@@ -67,3 +67,57 @@ class Pack(Block):
     def step(self, a: Any, b: Any, c: Any = None, d: Any = None) -> dict[str, Any]:
         values = [a, b] + [v for v in (c, d) if v is not None]
         return {"y": np.array([np.nan if v is None else v for v in values], dtype=np.float64)}
+
+
+REDUCERS: dict[str, Callable[[np.ndarray], Any]] = {
+    "min": np.min, "max": np.max, "mean": np.mean, "sum": np.sum,
+}
+
+
+@block("select", category="math")
+class Select(Block):
+    """Picks elements of a 1-D array by index, optionally reduced to one number (min, max, ...)."""
+
+    inputs = {"x": Port.array(None, doc="the array")}
+    outputs = {"y": Port(doc="the selected elements, or their reduction")}
+    params = {"indices": Param(list, doc="indices to pick, e.g. [0, 1]"),
+              "reduce": Param(str, "none", "combine the picked elements",
+                              choices=("none", *REDUCERS))}
+
+    @classmethod
+    def resolve_ports(cls, params):
+        indices = params["indices"]
+        if not indices or not all(isinstance(i, int) and not isinstance(i, bool)
+                                  for i in indices):
+            raise ValueError(f"indices must be a non-empty list of whole numbers, got {indices!r}")
+        if params["reduce"] == "none":
+            out = Port.array(None, (len(indices),), doc="the selected elements")
+        else:
+            out = Port.scalar(None, doc=f"{params['reduce']} of the selected elements")
+        return cls.inputs, {"y": out}
+
+    def setup(self) -> None:
+        self._index = np.asarray(self.p.indices)
+        self._reduce = REDUCERS.get(self.p.reduce)
+
+    def step(self, x: Any) -> dict[str, Any]:
+        try:
+            picked = np.asarray(x)[self._index]
+        except IndexError:
+            from ..core import BlockError
+            raise BlockError(f"index out of range for an input of shape {np.shape(x)}",
+                             node=self.name, field="param 'indices'") from None
+        return {"y": picked if self._reduce is None else _plain(self._reduce(picked))}
+
+
+@block("switch", category="math")
+class Switch(Block):
+    """Outputs ``a`` when the condition is true, else ``b``."""
+
+    inputs = {"when": Port.scalar("bool", doc="the condition"),
+              "a": Port(doc="value when true"),
+              "b": Port(like="a", doc="value when false")}
+    outputs = {"y": Port(like="a", doc="a or b")}
+
+    def step(self, when: Any, a: Any, b: Any) -> dict[str, Any]:
+        return {"y": a if when else b}
