@@ -380,16 +380,16 @@ def test_select_and_switch(write):
           - {id: pick, type: select, params: {indices: [0, 2]}}
           - {id: nearest, type: select, params: {indices: [0, 1, 2], reduce: min}}
           - {id: close, type: threshold, params: {level: 1.5, direction: below}}
-          - {id: yes, type: constant, params: {value: 10.0}}
-          - {id: no, type: constant, params: {value: 20.0}}
+          - {id: near_value, type: constant, params: {value: 10.0}}
+          - {id: far_value, type: constant, params: {value: 20.0}}
           - {id: choose, type: switch}
         edges:
           - arr.value -> pick.x
           - arr.value -> nearest.x
           - nearest.y -> close.x
           - close.on -> choose.when
-          - yes.value -> choose.a
-          - no.value -> choose.b
+          - near_value.value -> choose.a
+          - far_value.value -> choose.b
     """)
     runner = Runner(load_graph(path), strict=True)
     runner.run(1)

@@ -334,3 +334,11 @@ def test_real_console_script_prints_no_traceback(write, tmp_path):
     proc = subprocess.run([str(exe), "check", str(path)], capture_output=True, text=True)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and "unknown block type" in proc.stderr
+
+
+def test_yaml_boolean_id_gets_a_hint(write, cli):
+    path = write("g.yaml", """
+        nodes:
+          - {id: yes, type: counter}
+    """)
+    assert_cli_error(cli, path, "node id True", "quote the id")

@@ -277,10 +277,14 @@ class GraphLoader:
                                  node=str(raw.get("id", "?")), hint=_did_you_mean(key, NODE_KEYS))
         node_id = raw.get("id")
         if not isinstance(node_id, str) or not ID_RE.match(node_id):
+            hint = ("Give every node 'id:' made of letters, digits, '_' or '-' "
+                    "(no dots: dots separate subgraph levels).")
+            if isinstance(node_id, bool):
+                hint = ("YAML reads unquoted yes/no/on/off/true/false as booleans: quote the "
+                        "id (id: 'yes') or choose another name.")
             raise GraphError(f"node id {node_id!r} is missing or not a valid name",
                              file=path, line=line_of(raw, "id") if "id" in raw else line,
-                             hint="Give every node 'id:' made of letters, digits, '_' or '-' "
-                                  "(no dots: dots separate subgraph levels).")
+                             hint=hint)
         if node_id in local:
             raise GraphError(f"duplicate node id '{node_id}' (first defined on line "
                              f"{local[node_id].line})", file=path, line=line_of(raw, "id"),
