@@ -141,6 +141,15 @@ class _RobotBlock(Block):
     """Common to blocks that act for one named robot."""
 
     category = "sim2d"
+    _next_time = 0.0
+
+    def _due(self, rate_hz: float) -> bool:
+        """Is a new reading due at this tick, for a sensor running at ``rate_hz``?"""
+        now = self.ctx.tick * self.ctx.dt
+        if rate_hz > 0 and now + 1e-9 < self._next_time:
+            return False
+        self._next_time = now + (1.0 / rate_hz if rate_hz > 0 else 0.0)
+        return True
 
     def _robot(self, sim: Simulation):
         if sim is None:
@@ -199,11 +208,8 @@ class Sonar(_RobotBlock):
 
     def step(self, sim: Simulation) -> dict[str, Any]:
         robot = self._robot(sim)
-        rate = self.p.rate_hz or robot.spec.sonar.rate_hz
-        now = self.ctx.tick * self.ctx.dt
-        if rate > 0 and now + 1e-9 < self._next_time:
+        if not self._due(self.p.rate_hz or robot.spec.sonar.rate_hz):
             return {"fresh": False}
-        self._next_time = now + (1.0 / rate if rate > 0 else 0.0)
         ranges, echo = sim.sonar(robot.name)
         return {"ranges": ranges, "echo": echo, "fresh": True}
 
@@ -305,11 +311,8 @@ class Camera(_RobotBlock):
         self._slew(float(pan if pan is not None else 0.0), float(tilt if tilt is not None else 0.0),
                    float(zoom if zoom is not None else 1.0))
         head = {"pan": self._head[0], "tilt": self._head[1], "zoom": self._head[2]}
-        rate = self.p.rate_hz or self._dyn["rate_hz"]
-        now = self.ctx.tick * self.ctx.dt
-        if rate > 0 and now + 1e-9 < self._next_time:
+        if not self._due(self.p.rate_hz or self._dyn["rate_hz"]):
             return {**head, "fresh": False}
-        self._next_time = now + (1.0 / rate if rate > 0 else 0.0)
         cam = camera_pose(robot.pose, self._spec, self._head[0])
         image = render(sim.world, cam, self._head[1], self._head[2], self._spec, self.rng)
         seen = visible_signs(sim.world, cam, self._head[1], self._head[2], self._spec)
