@@ -93,6 +93,22 @@ def robot_steps(sim: Simulation, seconds: float) -> tuple[float, int]:
             return steps / elapsed, steps
 
 
+def camera_frames_per_second(world: World, spec: Any, seconds: float) -> float:
+    """Rendered 320 x 240 PTZ frames per wall second, panning along the office corridor."""
+    from sim2d.blocks import camera_spec_of
+    from sim2d.camera import camera_pose, render
+
+    cam_spec, _ = camera_spec_of(spec)
+    rng = np.random.default_rng(0)
+    frames, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds or frames < 3:
+        x, y, th = world.start
+        pose = camera_pose((x + 0.05 * frames % 20, y, th), cam_spec, math.sin(frames / 5))
+        render(world, pose, 0.3, 1.0 + frames % 3, cam_spec, rng)
+        frames += 1
+    return frames / (time.perf_counter() - start)
+
+
 def engine_steps(seconds: float) -> float:
     """Ticks per second of a 1-robot graph (world, drive, sonar, odometry) in the engine."""
     import tempfile
@@ -162,6 +178,10 @@ def main(argv: list[str] | None = None) -> int:
     single = results["scenarios"][0]["robot_steps_per_s"]
     status = "PASS" if single >= TARGET_SINGLE else "FAIL"
     print(f"\n{status} one robot: {single:.0f} robot steps/s (target >= {TARGET_SINGLE:.0f})")
+    fps = camera_frames_per_second(world, spec, seconds)
+    results["camera_frames_per_s"] = round(fps, 1)
+    print(f"PTZ camera, 320 x 240 render: {fps:.0f} frames/s "
+          f"({fps / 5.0:.0f} x the robot's 5 frames/s)")
     ticks = engine_steps(seconds)
     results["engine_one_robot_ticks_per_s"] = round(ticks, 1)
     print(f"through the dataflow engine (world, drive, sonar, odometry blocks): "
