@@ -1,0 +1,1 @@
+"""Exploration toolbox: the two-layer fuzzy perimeter follower (blocks and a subgraph)."""

@@ -1,0 +1,75 @@
+"""The two-layer fuzzy perimeter follower as plain functions, for one robot or a batch.
+
+Layer 1 predicts collisions: the front controller maps the Fr, FrLt and FrRt
+group distances to FrontCP (64 rules), the side controller maps Rt and RtFr to
+RightCP (16 rules). Layer 2 maps FrontCP, RightCP and dRt = Rt1 - Rt2 to the
+translation and rotation velocity (48 rules), as fractions of 70 % of the top
+speed and 40 % of the top turn rate. The knowledge bases are the YAML files in
+``blocks/explore/kb``; the rules' reasoning is in each file's ``doc``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..fuzzy import CompiledController, KnowledgeBase, compile_kb, load_kb
+from ..fuzzy.kb import merge_kbs
+
+KB_DIR = Path(__file__).parent / "kb"
+GROUP_INPUTS = ("Fr", "FrLt", "FrRt", "Rt", "RtFr", "dRt")
+
+
+@dataclass(frozen=True)
+class KnowledgeBases:
+    front: KnowledgeBase
+    side: KnowledgeBase
+    follow: KnowledgeBase
+
+    @classmethod
+    def load(cls, front: str | Path | None = None, side: str | Path | None = None,
+             follow: str | Path | None = None) -> "KnowledgeBases":
+        """The packaged knowledge bases, or the user's files where given."""
+        return cls(load_kb(front or KB_DIR / "front.yaml"), load_kb(side or KB_DIR / "side.yaml"),
+                   load_kb(follow or KB_DIR / "follow.yaml"))
+
+
+def sonar_groups(ranges: np.ndarray, index: dict[str, list[int]]) -> dict[str, np.ndarray]:
+    """Group distances (the minimum of each group's sonars) and dRt = Rt1 - Rt2.
+
+    ``ranges`` is (16,) or (B, 16); ``index`` maps group names, plus ``Rt1`` and
+    ``Rt2``, to sonar indices.
+    """
+    ranges = np.atleast_2d(ranges)
+    groups = {name: ranges[:, idx].min(axis=1) for name, idx in index.items()
+              if name not in ("Rt1", "Rt2")}
+    groups["dRt"] = ranges[:, index["Rt1"][0]] - ranges[:, index["Rt2"][0]]
+    return groups
+
+
+class PerimeterController:
+    """Group distances in, velocity commands (m/s, rad/s) out; one call for many robots."""
+
+    def __init__(self, kbs: KnowledgeBases, max_speed: float, max_turn_rate: float,
+                 v_fraction: float = 0.7, w_fraction: float = 0.4) -> None:
+        # The two layer-1 controllers share one call: same rules, half the overhead.
+        self.layer1: CompiledController = compile_kb(merge_kbs(kbs.front, kbs.side))
+        self.layer2: CompiledController = compile_kb(kbs.follow)
+        self.v_scale = v_fraction * max_speed
+        self.w_scale = w_fraction * max_turn_rate
+        self._l1_order = [GROUP_INPUTS.index(n) for n in self.layer1.input_names]
+        self._front = self.layer1.output_names.index("FrontCP")
+        self._side = self.layer1.output_names.index("RightCP")
+        self._l2_names = self.layer2.input_names
+        self._v = self.layer2.output_names.index("v")
+        self._w = self.layer2.output_names.index("w")
+
+    def decide(self, groups: np.ndarray) -> np.ndarray:
+        """Velocities (B, 2) = [v, w] for group rows (B, 6) ordered as ``GROUP_INPUTS``."""
+        groups = np.atleast_2d(groups)
+        cp = self.layer1.evaluate(groups[:, self._l1_order])
+        columns = {"FrontCP": cp[:, self._front], "RightCP": cp[:, self._side],
+                   "dRt": groups[:, GROUP_INPUTS.index("dRt")]}
+        out = self.layer2.evaluate(np.column_stack([columns[n] for n in self._l2_names]))
+        return np.column_stack([out[:, self._v] * self.v_scale, out[:, self._w] * self.w_scale])
