@@ -17,3 +17,5 @@ def test_benchmarks_quick_run(tmp_path):
     sim = json.loads((tmp_path / "sim.json").read_text())
     assert [s["robots"] for s in sim["scenarios"]] == [1, 10, 100]
     assert json.loads((tmp_path / "engine.json").read_text())
+    fuzzy = json.loads((tmp_path / "fuzzy.json").read_text())
+    assert [c["robots"] for c in fuzzy["compiled"]] == [1, 100, 1000]

@@ -12,6 +12,7 @@ from .validate import check_graph, schedule
 
 __all__ = [
     "Block", "BlockError", "BlockFailure", "Endpoint", "FlatGraph", "FlatNode", "GraphError",
-    "Param", "ParamError", "Port", "REGISTRY", "RunContext", "Runner", "SemmapError", "block",
+    "Param", "ParamError", "Port", "REGISTRY", "RunContext", "Runner", "SchemaViolation",
+    "SemmapError", "block",
     "check_graph", "load_graph", "load_probes", "parse_overrides", "schedule",
 ]

@@ -58,18 +58,21 @@ class PerimeterController:
         self.layer2: CompiledController = compile_kb(kbs.follow)
         self.v_scale = v_fraction * max_speed
         self.w_scale = w_fraction * max_turn_rate
-        self._l1_order = [GROUP_INPUTS.index(n) for n in self.layer1.input_names]
-        self._front = self.layer1.output_names.index("FrontCP")
-        self._side = self.layer1.output_names.index("RightCP")
-        self._l2_names = self.layer2.input_names
-        self._v = self.layer2.output_names.index("v")
-        self._w = self.layer2.output_names.index("w")
+        self._l1_order = np.array([GROUP_INPUTS.index(n) for n in self.layer1.input_names])
+        # layer 2's input columns: where FrontCP, RightCP and dRt come from
+        cp_names = self.layer1.output_names
+        self._l2_from = [("cp", cp_names.index(n)) if n in cp_names
+                         else ("group", GROUP_INPUTS.index(n)) for n in self.layer2.input_names]
+        self._scale = np.array([self.v_scale if n == "v" else self.w_scale
+                                for n in self.layer2.output_names])
+        self._vw = [self.layer2.output_names.index("v"), self.layer2.output_names.index("w")]
 
     def decide(self, groups: np.ndarray) -> np.ndarray:
         """Velocities (B, 2) = [v, w] for group rows (B, 6) ordered as ``GROUP_INPUTS``."""
         groups = np.atleast_2d(groups)
         cp = self.layer1.evaluate(groups[:, self._l1_order])
-        columns = {"FrontCP": cp[:, self._front], "RightCP": cp[:, self._side],
-                   "dRt": groups[:, GROUP_INPUTS.index("dRt")]}
-        out = self.layer2.evaluate(np.column_stack([columns[n] for n in self._l2_names]))
-        return np.column_stack([out[:, self._v] * self.v_scale, out[:, self._w] * self.w_scale])
+        layer2_in = np.empty((len(groups), len(self._l2_from)))
+        for k, (source, index) in enumerate(self._l2_from):
+            layer2_in[:, k] = cp[:, index] if source == "cp" else groups[:, index]
+        out = self.layer2.evaluate(layer2_in) * self._scale
+        return out[:, self._vw]

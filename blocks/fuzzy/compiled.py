@@ -115,10 +115,12 @@ class CompiledController:
     def rule_strengths(self, inputs: np.ndarray) -> np.ndarray:
         """Firing strength of every rule, (B, R + 1) with a final 0 column, for (B, n_inputs)."""
         x = np.maximum(np.minimum(inputs, self.high), self.low)
-        mu = np.ones((len(x), len(self._term_input) + 1))
+        mu = np.empty((len(x), len(self._term_input) + 1))
+        mu[:, -1] = 1.0
         mu[:, :-1] = _trapezoids(x[:, self._term_input], self._in_a, self._in_d, *self._in_slopes)
-        strengths = np.zeros((len(x), len(self._antecedents) + 1))
-        strengths[:, :-1] = mu[:, self._antecedents].min(axis=2)
+        strengths = np.empty((len(x), len(self._antecedents) + 1))
+        strengths[:, -1] = 0.0
+        np.min(mu[:, self._antecedents], axis=2, out=strengths[:, :-1])
         return strengths
 
     def evaluate(self, inputs: np.ndarray) -> np.ndarray:
