@@ -318,3 +318,26 @@ class Camera(_RobotBlock):
         seen = visible_signs(sim.world, cam, self._head[1], self._head[2], self._spec)
         return {**head, "image": image, "pose": np.asarray(cam, dtype=np.float64),
                 "fresh": True, "visible": seen}
+
+
+def right_wall_distance(segments: np.ndarray, pose: np.ndarray, reach: float = 4.0) -> float:
+    """Distance (m) from the robot's centre to the nearest wall straight to its right; inf if none."""
+    from .sonar import cone_ranges, segments_near
+    near = segments_near(segments, pose[0], pose[1], reach)
+    ranges, _ = cone_ranges(np.array([[pose[0], pose[1], pose[2] - math.pi / 2]]), near,
+                            math.radians(1.0), reach)
+    return float(ranges[0])
+
+
+@block("sim2d.right_wall", category="sim2d")
+class RightWall(_RobotBlock):
+    """Ground truth for scoring: the true distance from the robot's centre to the wall on its right."""
+
+    inputs = {"sim": SIM}
+    outputs = {"distance": Port.scalar("float64", unit="m",
+                                       doc="distance to the right wall; inf if none within 4 m")}
+    params = {"robot": ROBOT}
+
+    def step(self, sim: Simulation) -> dict[str, Any]:
+        robot = self._robot(sim)
+        return {"distance": right_wall_distance(sim.world.segments, robot.pose)}

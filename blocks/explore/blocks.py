@@ -175,3 +175,33 @@ class LoopClosureBlock(Block):
             self.report("loop_closed", self.loop.closed_at is not None)
             self.report("loop_time_s", self.loop.closed_at)
             self.report("distance_travelled_m", round(self.loop.travelled, 3))
+
+
+@block("explore.follow_metrics", category="explore")
+class FollowMetrics(Block):
+    """Scores wall following: mean and 95th-percentile |distance - target|, time within tolerance.
+
+    Feed it the true distance to the right wall (``sim2d.right_wall``); the
+    statistics go to run.json. Ticks without a wall within ``wall_within``
+    (doors, outer corners) are left out and reported as ``fraction_with_wall``.
+    """
+
+    inputs = {"distance": Port.scalar("float64", unit="m", doc="distance to the followed wall")}
+    params = {"target": Param(float, 0.7, "wanted distance from the robot's centre", unit="m",
+                              min=0.0),
+              "tolerance": Param(float, 0.15, "band counted as on target", unit="m", min=0.0),
+              "wall_within": Param(float, 2.0, "farther than this counts as no wall", unit="m",
+                                   min=0.0)}
+    category = "explore"
+
+    def reset(self) -> None:
+        from .metrics import FollowStats
+        self.stats = FollowStats(self.p.target, self.p.tolerance, self.p.wall_within)
+
+    def step(self, distance: float) -> None:
+        self.stats.add(float(distance))
+
+    def finish(self) -> None:
+        if hasattr(self, "stats"):
+            for key, value in self.stats.summary().items():
+                self.report(key, value)
