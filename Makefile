@@ -22,14 +22,15 @@ $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
 venv: $(VENV)/.installed
 venv-dev: $(VENV)/.installed-dev
 
-# The main job on the default world (office). Until the exploration pipeline
-# lands, that is the reactive wanderer in graphs/examples/wander.yaml.
+# The main job on the default world (office): exploration by fuzzy perimeter
+# following until the robot is back at its start.
 demo: venv
-	$(BIN)/semmap run graphs/examples/wander.yaml --out $(OUT) --record sonar.ranges
+	$(BIN)/semmap run graphs/perimeter_following.yaml --out $(OUT) --record follower.FrontCP --record follower.RightCP
 	$(BIN)/semmap render $(OUT) --gif
-	$(BIN)/semmap graph graphs/examples/wander.yaml --format png -o $(OUT)/graph.png
-	@echo "Outputs are in $(OUT)/: render.png and run.gif (the run), velocity_plot.png,"
-	@echo "graph.png (the pipeline), trajectory.csv, sonar.npz, probes.npz and run.json."
+	$(BIN)/semmap graph graphs/perimeter_following.yaml --format png -o $(OUT)/graph.png
+	@echo "Outputs are in $(OUT)/: path.png and run.gif (the exploration), velocity_plot.png"
+	@echo "(v and w over time), graph.png (the pipeline), trajectory.csv, sonar.npz, probes.npz"
+	@echo "and run.json (collisions, distance, loop closure, wall-distance error)."
 
 test: venv-dev
 	$(BIN)/python -m pytest -q -n 2

@@ -51,6 +51,7 @@ class WorldBlock(Block):
                         "robots: [{name, model, start: [x, y, theta]}]; start defaults to "
                         "the world's starts in order"),
         "trajectory": Param(bool, True, "write trajectory.csv"),
+        "path_png": Param(bool, False, "draw the paths over the world into path.png at the end"),
     }
 
     def setup(self) -> None:
@@ -118,6 +119,11 @@ class WorldBlock(Block):
                              *(f"{v:.6f}" for v in row[3:])])
         atomic_write_text(self.output_path("trajectory.csv"), text.getvalue())
         self._write_sonar_log()
+        if self.p.path_png:
+            from .render import draw_run, record_from_simulation
+            record = record_from_simulation(self.sim, self._rows, self.ctx.dt,
+                                            Path(self.ctx.out_dir))
+            draw_run(record, self.output_path("path.png"))
 
     def _write_sonar_log(self) -> None:
         """sonar.npz: per robot NAME@tick, NAME@ranges, NAME@echo, plus the sensor mounts."""

@@ -77,6 +77,26 @@ def load_run(folder: str | Path) -> RunRecord:
     return record
 
 
+def record_from_simulation(sim, rows: list[tuple], dt: float, folder: Path) -> RunRecord:
+    """A RunRecord from a live simulation and the world block's trajectory rows."""
+    robots = [{"name": r.name, "model": r.spec.name, "length": r.spec.length,
+               "width": r.spec.width} for r in sim.robots.values()]
+    record = RunRecord(folder=folder, world=sim.world, dt=dt, robots=robots,
+                       ticks=np.array(sorted({row[0] for row in rows}), dtype=int))
+    for robot in robots:
+        mine = [row for row in rows if row[2] == robot["name"]]
+        record.poses[robot["name"]] = np.array([row[3:6] for row in mine]).reshape(-1, 3)
+        record.odom[robot["name"]] = np.array([row[6:9] for row in mine]).reshape(-1, 3)
+    for robot in sim.robots.values():
+        if robot.sonar_log:
+            ticks, ranges, echo = zip(*robot.sonar_log)
+            record.sonar[robot.name] = {
+                "tick": np.asarray(ticks), "ranges": np.asarray(ranges), "echo": np.asarray(echo),
+                "mounts": robot.spec.sonar_mounts, "cone_deg": np.asarray(robot.spec.sonar.cone_deg),
+                "max_range": np.asarray(robot.spec.sonar.max_range)}
+    return record
+
+
 def _sonar_at(record: RunRecord, name: str, tick: int):
     log = record.sonar.get(name)
     if not log or "tick" not in log or not len(log["tick"]):

@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 
 from blocks import Runner, load_graph
@@ -116,3 +117,15 @@ def test_complex_and_office_close_their_loops_safely(cli, tmp_path):
         assert following["wall_error_mean_m"] <= target["mean"], (world, following)
         assert following["wall_error_p95_m"] <= target["p95"], (world, following)
         assert following["fraction_within_tolerance"] >= target["within"], (world, following)
+
+
+def test_narrow_corridor_groups_centre_the_robot():
+    from blocks.explore.controller import narrow_corridor_groups
+    wide = {k: np.array([v]) for k, v in
+            {"Rt": 0.45, "Lt": 1.2, "RtFr": 0.6, "FrRt": 0.5, "FrLt": 1.0, "Fr": 3.0,
+             "dRt": 0.0}.items()}
+    assert narrow_corridor_groups(wide, 0.45) == wide  # room enough: unchanged
+    narrow = dict(wide, Rt=np.array([0.17]), Lt=np.array([0.17]), FrLt=np.array([0.25]))
+    out = narrow_corridor_groups(narrow, 0.45)
+    assert out["Rt"][0] == pytest.approx(0.45)  # centred in the passage reads as on target
+    assert out["FrLt"][0] > 0.6 and out["Fr"][0] == 3.0 and out["dRt"][0] == 0.0

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..core import Block, BlockError, Param, Port, block
 from ..fuzzy import compile_kb, load_kb
-from .controller import KB_DIR, sonar_groups
+from .controller import KB_DIR, narrow_corridor_groups, sonar_groups
 from .loop import LoopClosure
 
 SUBGRAPHS = "subgraphs"  # publishes perimeter_follower.yaml as a block type
@@ -34,7 +34,11 @@ class SonarGroups(Block):
     outputs = {name: DISTANCE.with_fields(doc=f"group {name} (m)")
                for name in ("Fr", "FrLt", "FrRt", "Rt", "RtFr", "Lt")}
     outputs["dRt"] = Port.scalar("float64", unit="m", doc="Rt1 - Rt2: 0 when parallel")
-    params = {"robot": Param(str, "atrv_mini", "robot model or robot YAML (for the groups)")}
+    params = {"robot": Param(str, "atrv_mini", "robot model or robot YAML (for the groups)"),
+              "narrow_corridors": Param(bool, False, "centre in passages too narrow to keep the "
+                                                     "wall distance (uses the left sonars)"),
+              "side_target": Param(float, 0.45, "wall distance from the side sonars that the "
+                                                "side controller aims for", unit="m", min=0.05)}
 
     def setup(self) -> None:
         spec = _robot_spec(self.p.robot)
@@ -50,6 +54,8 @@ class SonarGroups(Block):
 
     def step(self, ranges: np.ndarray) -> dict[str, Any]:
         groups = sonar_groups(ranges, self._index)
+        if self.p.narrow_corridors:
+            groups = narrow_corridor_groups(groups, self.p.side_target)
         return {name: float(value[0]) for name, value in groups.items()
                 if name in self.outputs}
 

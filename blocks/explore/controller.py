@@ -76,3 +76,22 @@ class PerimeterController:
             layer2_in[:, k] = cp[:, index] if source == "cp" else groups[:, index]
         out = self.layer2.evaluate(layer2_in) * self._scale
         return out[:, self._vw]
+
+
+def narrow_corridor_groups(groups: dict[str, np.ndarray], target: float = 0.45
+                           ) -> dict[str, np.ndarray]:
+    """The paper's fix for narrow corridors: take the left sonars into account.
+
+    Where the passage is too narrow to keep ``target`` (m, from the side
+    sonars) to the right wall, that is ``Rt + Lt < 2 * target``, the right-side
+    distances are rescaled so that the middle of the passage reads as the
+    target: the follower centres itself instead of turning away. The front
+    diagonals, which see both walls of the passage close by, get the same scale.
+    """
+    rt, lt = groups["Rt"], groups["Lt"]
+    half_width = (rt + lt) / 2
+    scale = np.where(half_width < target, target / np.maximum(half_width, 1e-6), 1.0)
+    out = dict(groups)
+    for name in ("Rt", "RtFr", "FrRt", "FrLt"):
+        out[name] = groups[name] * scale
+    return out
