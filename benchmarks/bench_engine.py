@@ -75,7 +75,6 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import gc
-import json
 import math
 import os
 import platform
@@ -95,6 +94,9 @@ TARGET_US_PER_CALL = 2.0  # the issue's requirement, engine total per block call
 STATIC_SCHEDULE_US_PER_CALL = 0.25  # the "a static schedule in CPython can reach"
 FULL = (0.5, 7)  # (seconds per repeat, repeats) of a full run
 QUICK = (0.05, 3)  # the same for --quick
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from results_io import write_results  # noqa: E402
+
 RESULTS_JSON = Path(__file__).resolve().parent / "results" / "engine.json"
 
 # ---- scenario graphs -------------------------------------------------------------------
@@ -434,9 +436,7 @@ def main(argv: list[str] | None = None) -> int:
         "scenarios": results,
         "wall_time_s": round(time.perf_counter() - started, 2),
     }
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(report, indent=2) + "\n")
-    print(f"results written to {args.json} ({report['wall_time_s']} s)")
+    write_results(args.json, report, f" ({report['wall_time_s']} s)")
     return 0
 
 

@@ -10,7 +10,6 @@ Targets: >= 1000x faster than scikit-fuzzy for one robot; <= 20 us per robot bat
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -22,6 +21,9 @@ sys.path.insert(0, str(ROOT))
 
 from blocks.explore.controller import KnowledgeBases, PerimeterController  # noqa: E402
 from blocks.fuzzy.oracle import build_skfuzzy  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from results_io import write_results  # noqa: E402
 
 RESULTS_JSON = Path(__file__).resolve().parent / "results" / "fuzzy.json"
 
@@ -90,9 +92,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{single['speedup']:,}x faster than scikit-fuzzy (target >= 1000x)")
     print(f"{'PASS' if batched['us_per_robot'] <= 20 else 'FAIL'} 1000 robots: "
           f"{batched['us_per_robot']} us per robot (target <= 20 us)")
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(results, indent=2) + "\n")
-    print(f"results written to {args.json}")
+    write_results(args.json, results)
     return 0
 
 

@@ -16,7 +16,6 @@ dataflow engine (world + drive + sonar + odometry blocks) shows the engine's sha
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -32,6 +31,9 @@ from sim2d.robot import load_robot  # noqa: E402
 from sim2d.simulation import Simulation  # noqa: E402
 from sim2d.world import World, distance_to_segments, load_world  # noqa: E402
 from sim2d.worlds import world_path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from results_io import write_results  # noqa: E402
 
 RESULTS_JSON = Path(__file__).resolve().parent / "results" / "sim.json"
 DT = 0.1
@@ -186,9 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     results["engine_one_robot_ticks_per_s"] = round(ticks, 1)
     print(f"through the dataflow engine (world, drive, sonar, odometry blocks): "
           f"{ticks:.0f} ticks/s = {ticks / single:.2f} x the bare simulation")
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(results, indent=2) + "\n")
-    print(f"results written to {args.json}")
+    write_results(args.json, results)
     return 0
 
 
