@@ -78,18 +78,38 @@ class PerimeterController:
         return out[:, self._vw]
 
 
-def narrow_corridor_groups(groups: dict[str, np.ndarray], target: float = 0.45
-                           ) -> dict[str, np.ndarray]:
+def narrow_corridor_groups(groups: dict[str, np.ndarray], target: float = 0.45,
+                           diagonal_share: float = 0.55) -> dict[str, np.ndarray]:
     """The paper's fix for narrow corridors: take the left sonars into account.
 
-    Where the passage is too narrow to keep ``target`` (m, from the side
-    sonars) to the right wall, that is ``Rt + Lt < 2 * target``, the right-side
-    distances are rescaled so that the middle of the passage reads as the
-    target: the follower centres itself instead of turning away. The front
-    diagonals, which see both walls of the passage close by, get the same scale.
+    A right-wall follower cannot keep ``target`` (m, from the side sonars) to
+    the right wall in a passage narrower than twice that: the left wall comes
+    within the front-left sonars' reach, the front controller predicts a
+    collision and the robot turns away at the mouth. Here the left clearance
+    is the nearer of the left group ``Lt`` and the front-left diagonal ``FrLt``
+    times ``diagonal_share`` (its sideways share at 25-40 degrees, so a
+    passage is recognised at its mouth, before ``Lt`` is level with it). Where
+    ``Rt + left < 2 * target`` the right-side and diagonal distances are
+    scaled so that the middle of the passage reads as the target: the
+    follower centres itself and drives in instead of turning away.
+
+    Parameters
+    ----------
+    groups
+        Group distances from :func:`sonar_groups`, including ``Lt``.
+    target
+        Side distance the side controller aims for (m, from the sonars).
+    diagonal_share
+        How much of the ``FrLt`` reading counts as left clearance.
+
+    Returns
+    -------
+    dict
+        The groups, with ``Rt``, ``RtFr``, ``FrRt`` and ``FrLt`` rescaled in
+        narrow passages and unchanged elsewhere.
     """
-    rt, lt = groups["Rt"], groups["Lt"]
-    half_width = (rt + lt) / 2
+    left = np.minimum(groups["Lt"], groups["FrLt"] * diagonal_share)
+    half_width = (groups["Rt"] + left) / 2
     scale = np.where(half_width < target, target / np.maximum(half_width, 1e-6), 1.0)
     out = dict(groups)
     for name in ("Rt", "RtFr", "FrRt", "FrLt"):

@@ -313,21 +313,26 @@ def build_corridor() -> Plan:
 COMPLEX_OUTLINE = [
     (1.0, 2.0), (6.0, 2.0),
     (6.0, 0.8), (7.6, 0.8), (7.6, 2.0),            # alcove in the south wall
-    (11.0, 2.0), (11.0, 3.5), (14.5, 3.5),         # step (concave, then convex corner)
-    (14.5, 8.0), (13.0, 9.5),                      # chamfered north-east corner
-    (9.85, 9.5), (9.85, 12.0), (9.0, 12.0), (9.0, 9.5),  # narrow dead-end corridor, 0.85 m
+    (11.0, 2.0), (11.0, 3.5), (13.0, 3.5),         # step (concave, then convex corner)
+    (14.5, 5.0),                                   # 45-degree chamfer
+    (14.5, 11.5), (13.5, 11.5), (13.5, 9.5),       # narrow dead-end corridor, 1.0 m wide,
+    #                                                continuing the east wall
     (5.0, 9.5), (5.0, 11.5), (2.0, 11.5), (2.0, 9.5),    # bay in the north wall
     (1.0, 9.5),
     (1.0, 6.5), (2.5, 6.5), (2.5, 5.0), (1.0, 5.0),      # pier jutting from the west wall
 ]
+NARROW_CORRIDOR = (13.5, 14.5, 9.5, 11.5)  # x0, x1, y0, y1 of the complex world's narrow corridor
 
 
 def build_complex() -> Plan:
     """Test case 2: complex perimeter following, about 13.5 m x 11 m.
 
     The free space is the polygon :data:`COMPLEX_OUTLINE`: convex and concave
-    corners, a 45-degree chamfer, an alcove, a bay, a pier, and a 0.85 m wide
-    dead-end corridor (too narrow for comfortable wall following).
+    corners, a 45-degree chamfer, an alcove, a bay, a pier, and a 1.0 m wide
+    dead-end corridor (:data:`NARROW_CORRIDOR`) that continues the east wall.
+    It is narrower than twice the follower's 0.7 m wall distance, so the
+    right-wall follower turns away at its mouth unless it takes the left
+    sonars into account (the paper's fix; ``narrow_corridors``).
 
     Returns
     -------
@@ -335,7 +340,7 @@ def build_complex() -> Plan:
         Start in the south-west heading east, the south wall 0.7 m to the right.
     """
     plan = new_plan("complex", "An irregular perimeter with convex and concave corners, an "
-                    "alcove, a bay and a narrow 0.85 m dead-end corridor (test case 2: "
+                    "alcove, a bay and a narrow 1.0 m dead-end corridor (test case 2: "
                     "complex perimeter following).", 0.0, 0.0, 16.0, 13.0)
     walls_around(plan, polygon_mask(plan, COMPLEX_OUTLINE))
     plan.start = (3.0, 2.7, 0.0)
