@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     controller = PerimeterController(kbs, max_speed=1.0, max_turn_rate=1.5)
     rng = np.random.default_rng(0)
     groups = np.column_stack([rng.uniform(0.1, 4.0, (1000, 5)), rng.uniform(-1, 1, 1000)])
-    reference = skfuzzy_decision_seconds(kbs, groups, 3 if args.quick else 20)
+    reference = skfuzzy_decision_seconds(kbs, groups, 10 if args.quick else 20)
     print("semmap fuzzy controller: one decision = front (64 rules) + side (16) + follow (48)")
     print(f"reference: scikit-fuzzy ControlSystemSimulation: {reference * 1e3:.1f} ms per decision")
     results = {"skfuzzy_ms_per_decision": round(reference * 1e3, 3), "compiled": []}

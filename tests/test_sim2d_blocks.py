@@ -124,6 +124,23 @@ def test_malformed_world_is_a_clear_error_at_run(cli, graph, tmp_path, room):
     assert "bad.yaml" in result.err and "'negate' must be 0 or 1" in result.err
 
 
+def test_missing_world_names_the_world_file_not_a_graph_line(cli, graph, tmp_path):
+    absent = tmp_path / "absent.yaml"
+    result = cli("run", graph, "--world", absent, "--out", tmp_path / "x", "-q")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{absent}: node 'world': file not found" in result.err  # no graph line number
+
+
+def test_world_option_also_sets_the_graphs_own_world_parameter(cli, tmp_path):
+    from conftest import ROOT
+    out = tmp_path / "corridor"
+    result = cli("run", ROOT / "graphs/perimeter_following.yaml", "--world", "corridor",
+                 "--out", out, "-q", "--steps", 3)
+    assert result.code == 0, result
+    run = json.loads((out / "run.json").read_text())
+    assert run["graph"]["params"]["world"] == {"value": "corridor", "from": "--world"}
+
+
 def test_two_robots_in_one_world(cli, tmp_path, room):
     path = tmp_path / "two.yaml"
     path.write_text(textwrap.dedent(f"""

@@ -198,6 +198,9 @@ class GraphLoader:
             value, source = (spec.default, f"{path}:{line}") if not spec.required else (None, "")
             if name in given:
                 value, source, _ = given[name]
+            if not prefix and name in self.roles:  # `--world X` sets the graph's own `world`
+                value, source = self.roles[name], f"--{name}"
+                self.roles_used.add(name)
             override = self._take_override(prefix + (name,))
             if override is not None:
                 value, source = override.value, "--set"

@@ -91,9 +91,9 @@ class Runner:
                             rng=block_seed(self.seed, node.path))
         except SemmapError as exc:
             exc.node = exc.node or node.path
-            exc.file = exc.file or node.origin.file
-            exc.line = exc.line or node.origin.line
-            raise
+            if exc.file is None:  # about the node itself: point at it in the graph
+                exc.file, exc.line = node.origin.file, exc.line or node.origin.line
+            raise  # about another file (a world, a knowledge base): its own place
         except Exception as exc:
             raise BlockFailure(node.path, node.type_name, -1, exc) from exc
 

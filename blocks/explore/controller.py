@@ -59,10 +59,11 @@ class PerimeterController:
         self.v_scale = v_fraction * max_speed
         self.w_scale = w_fraction * max_turn_rate
         self._l1_order = np.array([GROUP_INPUTS.index(n) for n in self.layer1.input_names])
-        # layer 2's input columns: where FrontCP, RightCP and dRt come from
+        # layer 2's input columns, taken from [layer-1 outputs | groups] in one indexing
         cp_names = self.layer1.output_names
-        self._l2_from = [("cp", cp_names.index(n)) if n in cp_names
-                         else ("group", GROUP_INPUTS.index(n)) for n in self.layer2.input_names]
+        self._l2_take = np.array([cp_names.index(n) if n in cp_names
+                                  else len(cp_names) + GROUP_INPUTS.index(n)
+                                  for n in self.layer2.input_names])
         self._scale = np.array([self.v_scale if n == "v" else self.w_scale
                                 for n in self.layer2.output_names])
         self._vw = [self.layer2.output_names.index("v"), self.layer2.output_names.index("w")]
@@ -71,9 +72,7 @@ class PerimeterController:
         """Velocities (B, 2) = [v, w] for group rows (B, 6) ordered as ``GROUP_INPUTS``."""
         groups = np.atleast_2d(groups)
         cp = self.layer1.evaluate(groups[:, self._l1_order])
-        layer2_in = np.empty((len(groups), len(self._l2_from)))
-        for k, (source, index) in enumerate(self._l2_from):
-            layer2_in[:, k] = cp[:, index] if source == "cp" else groups[:, index]
+        layer2_in = np.concatenate((cp, groups), axis=1)[:, self._l2_take]
         out = self.layer2.evaluate(layer2_in) * self._scale
         return out[:, self._vw]
 

@@ -108,6 +108,7 @@ class CompiledController:
         self._columns, self._starts = np.array(columns), np.array(starts)
         self._n_terms = n_terms
         self._oa, self._ob, self._oc, self._od = shape
+        self._rise, self._fall = self._ob - self._oa, self._od - self._oc
         rs, rsh, fs, fsh = _slopes(*shape)
         # Broadcast to (B, O, T, M) for the membership of the sample points.
         self._out_slopes = tuple(v[None, :, :, None] for v in (self._oa, self._od, rs, rsh, fs, fsh))
@@ -129,7 +130,9 @@ class CompiledController:
         Inputs outside a universe are clipped to it, as scikit-fuzzy does. A row
         on which no rule fires has no defined output and gives nan.
         """
-        inputs = np.atleast_2d(np.asarray(inputs, dtype=np.float64))
+        if not (isinstance(inputs, np.ndarray) and inputs.ndim == 2
+                and inputs.dtype == np.float64):
+            inputs = np.atleast_2d(np.asarray(inputs, dtype=np.float64))
         strengths = self.rule_strengths(inputs)
         batch, outputs, terms = len(inputs), len(self._grid), self._n_terms
         activation = np.maximum.reduceat(strengths[:, self._columns], self._starts, axis=1)
@@ -138,8 +141,10 @@ class CompiledController:
         points = np.empty((batch, outputs, grid + 2 * terms))
         points[:, :, :grid] = self._grid
         # where each term crosses its activation level (scikit-fuzzy samples there too)
-        points[:, :, grid:grid + terms] = self._oa + activation * (self._ob - self._oa)
-        points[:, :, grid + terms:] = self._od - activation * (self._od - self._oc)
+        np.multiply(activation, self._rise, out=points[:, :, grid:grid + terms])
+        points[:, :, grid:grid + terms] += self._oa
+        np.multiply(activation, -self._fall, out=points[:, :, grid + terms:])
+        points[:, :, grid + terms:] += self._od
         points.sort(axis=2)
         member = _trapezoids(points[:, :, None, :], *self._out_slopes)
         np.minimum(member, activation[..., None], out=member)
@@ -156,15 +161,21 @@ class CompiledController:
 
 
 def _centroid(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Exact centroid of piecewise-linear functions sampled at (x, y) along the last axis."""
-    dx = x[..., 1:] - x[..., :-1]
+    """Exact centroid of piecewise-linear functions sampled at (x, y) along the last axis.
+
+    Rows with zero area (no rule fired) give nan.
+    """
+    dx = np.diff(x, axis=-1)
     y1, y2 = y[..., :-1], y[..., 1:]
     ysum = y1 + y2
     area = dx * ysum  # twice the area; the factor cancels
-    moment = dx * (x[..., :-1] * ysum + dx * (y1 + 2 * y2) / 3)
+    moment = (y2 + ysum) * (1 / 3)
+    moment *= dx
+    moment += x[..., :-1] * ysum
+    moment *= dx
     total = area.sum(axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(total > 0, moment.sum(axis=-1) / np.fmax(total, _EPS), np.nan)
+    centroid = moment.sum(axis=-1) / np.fmax(total, _EPS)
+    return np.where(total > 0, centroid, np.nan)
 
 
 def compile_kb(kb: KnowledgeBase) -> CompiledController:
