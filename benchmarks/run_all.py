@@ -9,6 +9,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_engine  # noqa: E402
 import bench_fuzzy  # noqa: E402
+import bench_maps  # noqa: E402
 import bench_sim  # noqa: E402
 
 
@@ -20,7 +21,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     common = ["--quick"] if args.quick else []
     status = 0
-    for name, module in (("engine", bench_engine), ("sim", bench_sim), ("fuzzy", bench_fuzzy)):
+    for name, module in (("engine", bench_engine), ("sim", bench_sim), ("fuzzy", bench_fuzzy),
+                         ("maps", bench_maps)):
         extra = ["--json", str(args.results / f"{name}.json")] if args.results else []
         if name == "engine" and args.quick:
             extra += ["--seconds", "0.01", "--repeats", "1"]

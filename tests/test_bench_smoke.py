@@ -19,3 +19,5 @@ def test_benchmarks_quick_run(tmp_path):
     assert json.loads((tmp_path / "engine.json").read_text())
     fuzzy = json.loads((tmp_path / "fuzzy.json").read_text())
     assert [c["robots"] for c in fuzzy["compiled"]] == [1, 100, 1000]
+    maps = json.loads((tmp_path / "maps.json").read_text())
+    assert maps["paper_updates_per_s"] > 0 and maps["logodds_updates_per_s"] > 0

@@ -1,0 +1,143 @@
+"""The paper's beam, robot, local and global maps, and the log-odds model, without the framework."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from blocks.maps.logodds import InverseSonarModel, LogOddsMap, log_odds_to_probability
+from blocks.maps.paper import (BeamModel, LocalMapper, PaperGlobalMap, RobotModel, SensorMount,
+                               free_space_borders, orient_local_map)
+
+
+def test_beam_is_a_30_degree_triangle_80_pixels_long_at_level_01():
+    beam = BeamModel()
+    m = beam.matrix()
+    assert m.shape == (161, 161) and m.dtype == np.uint8  # a square matrix, apex at the centre
+    assert set(np.unique(m)) == {0, 1}  # uniform grey level 01
+    assert m[80, 80:161].all() and not m[80, :80].any()  # along +x from the apex, 80 px
+    # the half-width at axial distance d is d * tan(15 deg)
+    for d in (20, 40, 80):
+        column = m[:, 80 + d]
+        assert column.sum() == 2 * math.floor(d * math.tan(math.radians(15)) + 1e-9) + 1
+    area = m.sum()
+    assert area == pytest.approx(80 ** 2 * math.tan(math.radians(15)), rel=0.03)
+
+
+def test_clipping_cuts_the_beam_at_the_reading():
+    beam = BeamModel()
+    clipped = beam.clipped(30)
+    assert clipped[80, 80 + 30] == 1 and not clipped[:, 80 + 31:].any()
+    assert beam.clipped(80).sum() == beam.matrix().sum()
+
+
+def test_robot_model_is_a_free_10_by_10_square_at_every_degree():
+    robot = RobotModel()
+    assert len(robot.rotations) == 360
+    assert robot.at(0.0).sum() == 100 * 3  # 100 pixels at level 11
+    for degrees in range(0, 360, 15):
+        assert 95 <= robot.at(math.radians(degrees)).sum() // 3 <= 115
+
+
+def _one_beam_mapper() -> LocalMapper:
+    return LocalMapper([SensorMount(0.25, 0.0, 0.0)])
+
+
+def test_local_map_pivots_the_beam_at_its_sensor_and_superposes():
+    mapper = LocalMapper([SensorMount(0.25, 0.0, 0.0), SensorMount(0.25, 0.0, 0.0)])
+    lm = mapper.local_map(np.array([1.0, 1.0]))
+    c = mapper.half
+    assert lm[c, c] == 3  # the robot model: 11
+    assert lm[c, c + 5 + 20] == 2  # two overlapping beams: 01 + 01 = 10
+    assert lm[c, c + 5 + 21] == 0  # clipped at the 1 m reading (20 px from the sensor)
+    assert lm[c, c - 6] == 0  # behind the robot: unknown
+
+
+def test_overlaps_saturate_at_11():
+    mapper = LocalMapper([SensorMount(0.25, 0.0, 0.0)] * 5)
+    lm = mapper.local_map(np.full(5, 4.0))
+    assert lm.max() == 3 and lm[mapper.half, mapper.half + 40] == 3
+
+
+def test_orienting_turns_counter_clockwise_in_the_world():
+    lm = np.zeros((41, 41), np.uint8)
+    lm[20, 21:41] = 1  # a ray along +x
+    turned = orient_local_map(lm, math.pi / 2)
+    rows, cols = np.nonzero(turned)
+    assert set(cols) == {20} and rows.min() >= 20  # now along +y (rows grow upward)
+
+
+def test_a_known_pose_lands_the_local_map_exactly():
+    mapper = _one_beam_mapper()
+    gm = PaperGlobalMap(0.05)
+    gm.add(mapper.local_map(np.array([1.0])), np.array([2.0, 3.0, math.pi / 2]))
+    levels, (ix, iy) = gm.levels()
+
+    def level_at(x: float, y: float) -> int:
+        return int(levels[int(math.floor(y / 0.05)) - iy, int(math.floor(x / 0.05)) - ix])
+
+    assert level_at(2.0, 3.0) == 3  # the robot
+    assert level_at(2.0, 3.0 + 0.25 + 0.9) == 1  # the beam points north now
+    assert level_at(2.0, 3.0 + 0.25 + 1.1) == 0  # beyond the reading
+    assert level_at(2.0 + 0.9, 3.0) == 0  # nothing east
+
+
+def test_global_map_skips_unknown_pixels_and_saturates():
+    mapper = _one_beam_mapper()
+    gm = PaperGlobalMap(0.05)
+    for _ in range(5):
+        gm.add(mapper.local_map(np.array([2.0])), np.array([0.0, 0.0, 0.0]))
+    levels, _ = gm.levels()
+    assert levels.max() == 3 and set(np.unique(levels)) <= {0, 3}
+    before = gm.grid.n_tiles
+    gm.add(np.zeros_like(mapper.local_map(np.array([2.0]))), np.array([50.0, 50.0, 0.0]))
+    assert gm.grid.n_tiles == before  # an all-unknown local map allocates nothing
+
+
+def test_borders_are_unknown_cells_next_to_free_space():
+    levels = np.zeros((5, 5), np.uint8)
+    levels[1:4, 1:4] = 2
+    border = free_space_borders(levels)
+    assert border.sum() == 25 - 9 and not border[2, 2]
+
+
+def test_inverse_sonar_model_free_then_occupied_arc_then_unknown():
+    model = InverseSonarModel()
+    rho = np.array([0.5, 1.0, 1.5, 1.99, 2.0, 2.04, 2.2, 3.0])
+    delta = model.beam_update(rho, np.ones_like(rho, bool), 2.0)
+    assert list(delta[:3]) == [model.l_free] * 3
+    assert delta[4] == model.l_occ and delta[5] == model.l_occ
+    assert delta[6] == 0 and delta[7] == 0
+    # no echo: clears free space, marks nothing occupied
+    no_echo = model.beam_update(rho, np.ones_like(rho, bool), 4.0)
+    assert (no_echo <= 0).all() and no_echo[-1] == model.l_free
+
+
+def test_log_odds_map_accumulates_and_clamps():
+    lo = LogOddsMap(resolution=0.05)
+    sensors = np.array([[0.0, 0.0, 0.0]])
+    for _ in range(20):
+        lo.add_scan(sensors, np.array([2.0]))
+    p, (ix, iy) = lo.probabilities()
+
+    def prob(x: float, y: float) -> float:
+        return float(p[int(math.floor(y / 0.05)) - iy, int(math.floor(x / 0.05)) - ix])
+
+    assert prob(1.0, 0.0) == pytest.approx(log_odds_to_probability(-4.0), abs=1e-6)  # clamped
+    assert prob(2.0, 0.0) == pytest.approx(log_odds_to_probability(4.0), abs=1e-6)
+    assert prob(3.0, 0.0) == pytest.approx(0.5)  # beyond the wall: never touched
+    assert prob(1.0, 0.5) == pytest.approx(0.5)  # outside the 30-degree cone (about 27 deg off)
+    one = LogOddsMap(resolution=0.05)
+    one.add_scan(sensors, np.array([2.0]))
+    p1, (jx, jy) = one.probabilities()
+    assert p1[int(round(0 / 0.05)) - jy, int(math.floor(1.0 / 0.05)) - jx] == pytest.approx(
+        log_odds_to_probability(-0.4), abs=1e-6)
+
+
+def test_log_odds_cone_turns_with_the_heading():
+    lo = LogOddsMap(resolution=0.05)
+    lo.add_scan(np.array([[0.0, 0.0, math.pi / 2]]), np.array([1.0]))
+    p, (ix, iy) = lo.probabilities()
+    assert p[int(math.floor(1.0 / 0.05)) - iy, 0 - ix] > 0.6  # the wall arc is north
+    assert p[0 - iy, int(math.floor(0.5 / 0.05)) - ix] == pytest.approx(0.5)  # east untouched
