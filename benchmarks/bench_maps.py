@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from blocks.explore.controller import (GROUP_INPUTS, KnowledgeBases,  # noqa: E402
-                                       PerimeterController, sonar_groups)
+                                       PerimeterController, sonar_group_index, sonar_groups)
 from blocks.maps.logodds import LogOddsMap  # noqa: E402
 from blocks.maps.paper import LocalMapper, PaperGlobalMap, SensorMount  # noqa: E402
 from sim2d.robot import load_robot  # noqa: E402
@@ -44,8 +44,7 @@ def record_exploration(steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     sim = Simulation(world, [("r", spec, world.start)])
     controller = PerimeterController(KnowledgeBases.load(), spec.limits.max_speed,
                                      spec.limits.max_turn_rate)
-    index = {n: [spec.sonar_index(s) for s in m] for n, m in spec.sonar_groups.items()}
-    index["Rt1"], index["Rt2"] = [spec.sonar_index("Rt1")], [spec.sonar_index("Rt2")]
+    index = sonar_group_index(spec)
     scans, poses, sim_seconds = [], [], 0.0
     for _ in range(steps):
         t0 = time.perf_counter()

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..core import Block, BlockError, Param, Port, block
 from ..fuzzy import compile_kb, load_kb
-from .controller import KB_DIR, narrow_corridor_groups, sonar_groups
+from .controller import KB_DIR, narrow_corridor_groups, sonar_group_index, sonar_groups
 from .loop import LoopClosure
 
 SUBGRAPHS = "subgraphs"  # publishes perimeter_follower.yaml as a block type
@@ -42,10 +42,7 @@ class SonarGroups(Block):
 
     def setup(self) -> None:
         spec = _robot_spec(self.p.robot)
-        index = {name: [spec.sonar_index(s) for s in members]
-                 for name, members in spec.sonar_groups.items()}
-        for name in ("Rt1", "Rt2"):
-            index[name] = [spec.sonar_index(name)]
+        index = sonar_group_index(spec)
         missing = {"Fr", "FrLt", "FrRt", "Rt", "RtFr", "Lt"} - set(index)
         if missing:
             raise BlockError(f"the robot file has no sonar group(s) {sorted(missing)}",

@@ -35,6 +35,15 @@ class KnowledgeBases:
                    load_kb(follow or KB_DIR / "follow.yaml"))
 
 
+def sonar_group_index(spec) -> dict[str, list[int]]:
+    """Sonar indices of each group in a robot file, plus ``Rt1`` and ``Rt2`` for dRt."""
+    index = {name: [spec.sonar_index(s) for s in members]
+             for name, members in spec.sonar_groups.items()}
+    for name in ("Rt1", "Rt2"):
+        index[name] = [spec.sonar_index(name)]
+    return index
+
+
 def sonar_groups(ranges: np.ndarray, index: dict[str, list[int]]) -> dict[str, np.ndarray]:
     """Group distances (the minimum of each group's sonars) and dRt = Rt1 - Rt2.
 
