@@ -103,7 +103,7 @@ class PaperMap(_MapWriter):
         self.map = PaperGlobalMap(self.p.resolution)
 
     def reset(self) -> None:
-        self.map = PaperGlobalMap(self.p.resolution)
+        self.map.clear()
 
     def step(self, local: np.ndarray, pose: np.ndarray) -> None:
         self.map.add(local, pose)
@@ -161,10 +161,10 @@ class LogOddsMapBlock(_MapWriter):
                                        l_free=self.p.l_free, l_occ=self.p.l_occ,
                                        arc_thickness=self.p.arc_thickness,
                                        l_min=-self.p.clamp, l_max=self.p.clamp)
-        self.reset()
+        self.map = LogOddsMap(self.model, resolution=self.p.resolution)  # tables built once
 
     def reset(self) -> None:
-        self.map = LogOddsMap(self.model, resolution=self.p.resolution)
+        self.map.clear()
 
     def step(self, ranges: np.ndarray, pose: np.ndarray) -> None:
         x, y, theta = (float(v) for v in pose[:3])

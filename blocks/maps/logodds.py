@@ -106,8 +106,8 @@ class LogOddsMap:
                  tile_size: int = 64) -> None:
         self.model = model or InverseSonarModel()
         self.resolution = resolution
-        self.grid = TiledGrid(resolution, dtype=np.float32, fill=0.0, tile_size=tile_size)
-        self.updates = 0
+        self.tile_size = tile_size
+        self.clear()
         self._reach = int(math.ceil((self.model.max_range + self.model.arc_thickness)
                                     / resolution)) + 1
         if 2 * self._reach >= self.OUTSIDE:
@@ -131,17 +131,23 @@ class LogOddsMap:
         return r0 - n, c0 - n, codes[r0:r1, c0:c1].copy()
 
     def _lookup_table(self) -> np.ndarray:
-        """Log-odds change for (reading code, range code), both in half cells."""
-        m, res = self.model, self.resolution
-        readings = np.arange(2 * self._reach + 1)[:, None] / 2 * res  # m
-        ranges = np.arange(256)[None, :] / 2 * res
-        echo = readings < m.max_range - m.max_range_margin
-        half_arc = m.arc_thickness / 2
-        free = ranges < np.minimum(readings, m.max_range) - np.where(echo, half_arc, 0.0)
-        occupied = echo & (np.abs(ranges - readings) <= half_arc)
-        table = np.where(occupied, m.l_occ, np.where(free, m.l_free, 0.0)).astype(np.float32)
-        table[:, self.OUTSIDE] = 0.0
-        return table
+        """Log-odds change for (reading code, range code), both in half cells.
+
+        Each row is the model's :meth:`InverseSonarModel.beam_update` for one
+        reading, evaluated at every range code.
+        """
+        res = self.resolution
+        ranges = np.arange(256) / 2 * res
+        inside = np.ones(256, dtype=bool)
+        inside[self.OUTSIDE] = False
+        return np.stack([self.model.beam_update(ranges, inside, code / 2 * res)
+                         for code in range(2 * self._reach + 1)])
+
+    def clear(self) -> None:
+        """Forget every update (the precomputed cone tables are kept)."""
+        self.grid = TiledGrid(self.resolution, dtype=np.float32, fill=0.0,
+                              tile_size=self.tile_size)
+        self.updates = 0
 
     def _clamped_add(self, dest: np.ndarray, src: np.ndarray) -> None:
         np.add(dest, src, out=dest)

@@ -220,7 +220,13 @@ class PaperGlobalMap:
 
     def __init__(self, resolution: float = 0.05, tile_size: int = 64) -> None:
         self.resolution = resolution
-        self.grid = TiledGrid(resolution, dtype=np.uint8, fill=UNKNOWN, tile_size=tile_size)
+        self.tile_size = tile_size
+        self.clear()
+
+    def clear(self) -> None:
+        """Back to all unknown."""
+        self.grid = TiledGrid(self.resolution, dtype=np.uint8, fill=UNKNOWN,
+                              tile_size=self.tile_size)
         self.updates = 0
 
     def add(self, lm: np.ndarray, pose: np.ndarray) -> None:
