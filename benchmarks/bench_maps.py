@@ -7,12 +7,24 @@ first without the framework. The reference, measured in the same run, is one
 simulation step of that robot (physics plus the 16-sonar scan): the ratio says
 how many map updates fit in the time of one simulated step.
 Target: >= 2000 updates per second on one core, for both models.
+
+Peak memory: ``semmap run graphs/mapping.yaml --world office`` runs as a child
+of a small wrapper process, which reads its peak resident set size (RSS) from
+the kernel when it reaps it (``os.wait4``: that child's own ``ru_maxrss``, so
+other children cannot inflate it, which ``RUSAGE_CHILDREN`` would, and this
+benchmark's own memory is not inherited through fork).  The reference, measured
+the same way in the same run, is a process that only imports the framework
+and the block libraries: the ratio is what mapping adds on top.
+Target: <= 400 MB peak RSS for the whole mapping run.  ``--quick`` runs the
+graph for 300 ticks only.
 """
 from __future__ import annotations
 
 import argparse
 import math
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -35,6 +47,9 @@ from results_io import write_results  # noqa: E402
 
 RESULTS_JSON = Path(__file__).resolve().parent / "results" / "maps.json"
 TARGET = 2000.0
+RSS_TARGET_MB = 400.0
+#: What the reference process imports: the framework and the block libraries.
+REFERENCE_IMPORTS = "import blocks, sim2d, blocks.maps.blocks, blocks.explore.blocks"
 
 
 def record_exploration(steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -81,6 +96,72 @@ def logodds_updates_per_second(scans, poses, mounts) -> float:
     return len(scans) / (time.perf_counter() - start)
 
 
+def _semmap_command() -> list[str]:
+    """The venv's ``semmap`` next to this interpreter, else ``python -m blocks.cli``."""
+    script = Path(sys.executable).with_name("semmap")
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "blocks.cli"]
+
+
+#: Runs argv[1:] and prints its peak RSS (ru_maxrss) to stdout; the child's output goes to
+#: stderr.  A fresh, small process, because a child's ru_maxrss also counts the RSS of the
+#: process it was forked from (Linux keeps the pre-exec high-water mark across exec).
+_RSS_WRAPPER = """
+import os, sys
+pid = os.fork()
+if pid == 0:
+    os.dup2(2, 1)
+    try:
+        os.execvp(sys.argv[1], sys.argv[1:])
+    except OSError as exc:
+        os.write(2, f"cannot run {sys.argv[1]}: {exc}\\n".encode())
+    os._exit(127)
+_, status, usage = os.wait4(pid, 0)
+print(usage.ru_maxrss)
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+
+
+def peak_rss_mb(command: list[str]) -> float:
+    """Run ``command`` and return its peak resident set size in MiB.
+
+    The command runs under a fresh ``python -S`` wrapper that forks it and
+    reaps it with ``os.wait4``, which gives that one child's usage (with
+    any children it waited for).  Measuring from this process instead would
+    be wrong twice: ``RUSAGE_CHILDREN`` is the maximum over every child ever
+    reaped, and a child's ``ru_maxrss`` starts at the RSS of the process it
+    was forked from (here, a benchmark holding numpy and a recorded run);
+    the wrapper's own few MiB are far below anything measured.  The child's
+    output goes to a temporary file (shown on failure), so a chatty child
+    cannot block on a full pipe.
+    """
+    with tempfile.TemporaryFile() as log:
+        proc = subprocess.run([sys.executable, "-S", "-c", _RSS_WRAPPER, *command],
+                              stdout=subprocess.PIPE, stderr=log, cwd=ROOT, text=True,
+                              check=False)
+        if proc.returncode != 0:
+            log.seek(0)
+            tail = log.read().decode(errors="replace")[-2000:]
+            raise RuntimeError(f"{' '.join(command)} exited with {proc.returncode}:\n{tail}")
+    kib_or_bytes = int(proc.stdout.split()[-1])
+    # ru_maxrss is in KiB on Linux, in bytes on macOS
+    return kib_or_bytes / (2**20 if sys.platform == "darwin" else 2**10)
+
+
+def mapping_memory(steps: int | None) -> dict[str, float | int | bool | None]:
+    """Peak RSS of the office mapping run and of the import-only reference (MiB)."""
+    reference = peak_rss_mb([sys.executable, "-c", REFERENCE_IMPORTS])
+    with tempfile.TemporaryDirectory(prefix="bench_maps_") as out:
+        command = _semmap_command() + ["run", str(ROOT / "graphs" / "mapping.yaml"),
+                                       "--world", "office", "--quiet", "--out", out]
+        if steps is not None:
+            command += ["--steps", str(steps)]
+        mapping = peak_rss_mb(command)
+    return {"mapping_steps": steps, "mapping_peak_rss_mb": round(mapping, 1),
+            "reference_rss_mb": round(reference, 1),
+            "mapping_rss_x_reference": round(mapping / reference, 3),
+            "rss_target_mb": RSS_TARGET_MB, "rss_pass": mapping <= RSS_TARGET_MB}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--quick", action="store_true")
@@ -108,6 +189,18 @@ def main(argv: list[str] | None = None) -> int:
         status |= 0 if ok else 1
         print(f"{'PASS' if ok else 'MISS'} {name}: {rate:,.0f} updates per second "
               f"(target >= {TARGET:,.0f})")
+    memory = mapping_memory(300 if args.quick else None)
+    results.update(memory)
+    ticks = "the whole run" if memory["mapping_steps"] is None else \
+        f"{memory['mapping_steps']} ticks"
+    print(f"\npeak RSS, semmap run graphs/mapping.yaml --world office ({ticks}):")
+    print(f"{'process':>9}  {'MiB':>7}  {'x ref':>6}")
+    print(f"{'reference':>9}  {memory['reference_rss_mb']:7.1f}  {1.0:6.2f}   (imports only)")
+    print(f"{'mapping':>9}  {memory['mapping_peak_rss_mb']:7.1f}  "
+          f"{memory['mapping_rss_x_reference']:6.2f}")
+    status |= 0 if memory["rss_pass"] else 1
+    print(f"{'PASS' if memory['rss_pass'] else 'MISS'} mapping: "
+          f"{memory['mapping_peak_rss_mb']:,.0f} MiB peak RSS (target <= {RSS_TARGET_MB:,.0f})")
     write_results(args.json, results)
     return 0 if args.quick else status  # a quick run is a smoke test on a busy machine
 

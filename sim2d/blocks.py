@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,8 @@ class WorldBlock(Block):
                         "the world's starts in order"),
         "trajectory": Param(bool, True, "write trajectory.csv"),
         "path_png": Param(bool, False, "draw the paths over the world into path.png at the end"),
+        "specular": Param(str, "robot", "specular sonar loss: as the robot file says, or forced "
+                          "on or off for every robot", choices=("robot", "on", "off")),
     }
 
     def setup(self) -> None:
@@ -66,6 +69,8 @@ class WorldBlock(Block):
                                  node=self.name, field="param 'robots'")
             name = entry.get("name", f"robot{i}")
             spec = load_robot(entry.get("model", "atrv_mini"))
+            if self.p.specular != "robot":
+                spec = replace(spec, sonar=replace(spec.sonar, specular=self.p.specular == "on"))
             start = entry.get("start")
             if start is None:
                 if len(self.world.starts) > i:

@@ -31,7 +31,18 @@ def test_mapping_writes_scored_maps_and_the_paper_map_does_not_regress(cli, tmp_
     # the probabilistic map beats the paper's on precision without losing recall
     assert probabilistic["precision"] > online["precision"] + 0.5
     assert probabilistic["recall"] >= online["recall"]
-    for name in ("online", "probabilistic"):
+    # the offline map too, and it removes most of the false free space of specular loss
+    offline = metrics["offline_map"]
+    assert offline["precision"] > online["precision"] + 0.5
+    assert offline["recall"] >= online["recall"]
+    assert offline["false_free"] < 0.5 * online["false_free"]
+    assert offline["features"] >= 2
+    # scored against what the sonar could see, too (the true pose is connected)
+    assert 0 < offline["free_coverage_visible"] <= 1 and offline["f1_visible"] >= offline["f1"]
+    for name in ("processed", "offline"):
+        doc = json.loads((out / "maps" / f"{name}_walls.geojson").read_text())
+        assert doc["type"] == "FeatureCollection" and doc["features"]
+    for name in ("online", "probabilistic", "processed", "offline"):
         m = read_map(out / "maps" / f"{name}.yaml")  # valid map_server files
         occupied, free, _ = m.classes()
         assert occupied.any() and free.any()

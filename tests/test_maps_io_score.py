@@ -3,16 +3,23 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from blocks.core.errors import SemmapError
 from blocks.maps.mapio import (MapError, OccupancyMap, occupancy_map_from_world, read_map,
                                write_map)
-from blocks.maps.score import METRIC_KEYS, score_map
-from sim2d.world import load_world
+from blocks.maps.score import (METRIC_KEYS, VISIBLE_KEYS, TrajectoryError, read_path_csv,
+                               score_map, visible_from_path)
+from blocks.maps.score import _ground_truth as score_ground_truth
+from sim2d.world import World, load_world
 from sim2d.worlds import world_path
 
 
@@ -255,3 +262,289 @@ def test_cli_score_errors_exit_2_without_traceback(cli, tmp_path):
     assert result.code == 2 and "unknown world" in result.err
     result = cli("score", world_path("corridor"), "--world", "office", "--tolerance", -1)
     assert result.code == 2 and "Traceback" not in result.err
+
+
+# ---- what a run could see ----------------------------------------------------------------
+RES = 0.05
+
+
+def grid_world(width: float, height: float, rects: list[tuple[float, float, float, float]],
+               start: tuple[float, float], name: str = "drawn") -> World:
+    """A world from wall rectangles (x0, y0, x1, y1) in metres, origin (0, 0), 5 cm cells."""
+    up = np.zeros((round(height / RES), round(width / RES)), dtype=bool)  # rows y up
+    for x0, y0, x1, y1 in rects:
+        up[round(y0 / RES):round(y1 / RES), round(x0 / RES):round(x1 / RES)] = True
+    return World(name=name, segments=np.zeros((0, 5)), signs=[], starts=[(*start, 0.0)],
+                 resolution=RES, origin=(0.0, 0.0, 0.0), occupied=np.flipud(up))
+
+
+def box(width: float, height: float, t: float = 0.1) -> list[tuple[float, float, float, float]]:
+    return [(0, 0, width, t), (0, height - t, width, height), (0, 0, t, height),
+            (width - t, 0, width, height)]
+
+
+#: Two 6 m rooms side by side: room A x in [0.1, 6.0], a 0.3 m thick wall, room B x in
+#: [6.3, 11.9]; the door in the dividing wall is at y in [4.5, 5.5], far from the path.
+TWO_ROOMS = box(12.0, 6.0) + [(6.0, 0.0, 6.3, 4.5), (6.0, 5.5, 6.3, 6.0)]
+#: A path confined to room A, near its floor: the door is > 4 m away from every pose.
+ROOM_A_PATH = np.array([[1.0, 1.0], [2.5, 1.0]])
+
+
+def centres_x(mask_shape: tuple[int, int]) -> np.ndarray:
+    return (np.arange(mask_shape[1]) + 0.5) * RES
+
+
+@pytest.fixture(scope="module")
+def two_rooms():
+    world = grid_world(12.0, 6.0, TWO_ROOMS, (1.0, 1.0), "two_rooms")
+    return world, visible_from_path(world, ROOM_A_PATH, max_range=4.0)
+
+
+def facing_walls(world: World) -> np.ndarray:
+    """Facing wall cells of a drawn world, whose floor is all connected (no outside margin)."""
+    walls = occupancy_map_from_world(world).occupancy > 0.5
+    reachable = ~walls
+    return walls & ndimage.binary_dilation(reachable, structure=np.ones((3, 3), bool))
+
+
+def test_visibility_stays_in_the_room_the_path_is_in(two_rooms):
+    world, seen = two_rooms
+    assert seen.shape == occupancy_map_from_world(world).shape
+    x = centres_x(seen.shape)[None, :].repeat(seen.shape[0], axis=0)
+    facing = facing_walls(world)
+    room_b = facing & (x > 6.3)
+    assert room_b.sum() > 300 and not (seen & room_b).any()   # the other room is unseen
+    assert not seen[:, x[0] > 6.3].any()                       # nothing of it, not only walls
+    room_a = facing & (x < 4.0)
+    assert (seen & room_a).sum() > 0.3 * room_a.sum()
+
+
+def test_visibility_is_y_up_and_stops_at_the_first_wall(two_rooms):
+    _, seen = two_rooms
+    # the path runs along y = 1 m: the floor wall (rows 0-1) is near, the top wall 4.9 m away
+    assert seen[1, 20:50].all()          # the wall's face, row 1 = y in [0.05, 0.1)
+    assert not seen[0].any()             # behind the face: never visible
+    assert not seen[-2:].any()           # the top wall is out of range
+    # the dividing wall, 0.3 m thick at x in [6.0, 6.3): its room-A face only
+    rows = slice(round(0.8 / RES), round(1.2 / RES))
+    assert seen[rows, 120].all()
+    assert not seen[rows, 121:126].any()
+
+
+def test_a_wall_casts_a_shadow():
+    # a free-standing wall between the pose and the floor behind it
+    world = grid_world(10.0, 6.0, box(10.0, 6.0) + [(3.0, 2.5, 3.2, 3.5)], (1.0, 3.0))
+    seen = visible_from_path(world, np.array([[1.025, 3.025]]), max_range=4.0)
+
+    def cell(x: float, y: float) -> tuple[int, int]:
+        return int(y / RES), int(x / RES)
+
+    assert seen[cell(3.02, 3.0)]                # the pillar's near face
+    assert not seen[cell(3.17, 3.0)]            # its far face
+    assert not seen[cell(4.0, 3.0)]             # floor in its shadow, 3 m away
+    assert seen[cell(4.0, 1.0)]                 # floor beside the shadow, as far
+    # range, along a free row: 3.85 m is seen, 4.25 m is not
+    seen_low = visible_from_path(world, np.array([[1.025, 1.025]]), max_range=4.0)
+    assert seen_low[cell(4.875, 1.025)]         # 3.85 m away
+    assert not seen_low[cell(5.275, 1.025)]     # 4.25 m away
+
+
+def test_a_corridor_path_sees_both_walls(worlds):
+    world = worlds["corridor"]
+    path = np.array([[0.9, 1.1], [19.3, 1.1]])  # down the middle of the 2 m wide corridor
+    seen = visible_from_path(world, path)
+    truth = occupancy_map_from_world(world)
+    _, _, facing = score_ground_truth(world)
+    _, y = truth.cell_centres()
+    low = facing & (y[:, None] < 0.5)
+    high = facing & (y[:, None] > 1.5)
+    assert low.sum() > 350 and high.sum() > 350
+    assert (seen & low).sum() == low.sum() and (seen & high).sum() == high.sum()
+    s = score_map(truth, world, visible=seen)
+    assert s["visible_wall_cells"] == s["facing_wall_cells"]
+    assert s["visible_free_cells"] == s["reachable_free_cells"]
+
+
+def test_path_sampling_interpolates_between_waypoints(two_rooms):
+    world, _ = two_rooms
+    # two waypoints 4.5 m apart: the middle of the segment must be seen from, too
+    seen = visible_from_path(world, np.array([[0.8, 3.0], [5.3, 3.0]]), max_range=0.5)
+    assert seen[round(3.0 / RES), round(3.05 / RES)]
+    ends = visible_from_path(world, np.array([[0.8, 3.0], [5.3, 3.0]]), max_range=0.5,
+                             spacing=10.0)
+    assert not ends[round(3.0 / RES), round(3.05 / RES)]  # only the two ends
+
+
+def test_visible_scores_a_perfect_map_of_the_seen_room(two_rooms):
+    world, seen = two_rooms
+    truth = occupancy_map_from_world(world)
+    p = truth.occupancy.copy()
+    p[:, centres_x(p.shape) > 6.3] = np.nan         # room B never mapped
+    s = score_map(OccupancyMap(p, truth.resolution, truth.origin), world, visible=seen)
+    assert tuple(s) == METRIC_KEYS + VISIBLE_KEYS
+    assert s["precision"] == 1.0
+    assert s["recall_visible"] == pytest.approx(1.0) and s["f1_visible"] == pytest.approx(1.0)
+    assert s["free_coverage_visible"] == 1.0 and s["false_free_visible"] == 0.0
+    assert s["recall"] < 0.7 and s["free_coverage"] < 0.6   # room B counts against plain scores
+    assert 0 < s["visible_wall_cells"] < s["facing_wall_cells"]
+    assert 0 < s["visible_free_cells"] < s["reachable_free_cells"]
+    # and a map that lost the seen room's floor wall loses visible recall
+    p[:round(0.2 / RES), :] = 0.0
+    worse = score_map(OccupancyMap(p, truth.resolution, truth.origin), world, visible=seen)
+    assert worse["recall_visible"] < 0.9 and worse["false_free_visible"] > 0.1
+
+
+def test_all_and_nothing_visible(two_rooms):
+    world, _ = two_rooms
+    truth = occupancy_map_from_world(world)
+    shifted = OccupancyMap(truth.occupancy, truth.resolution, (0.3, 0.2, 0.0))
+    plain = score_map(shifted, world)
+    everything = score_map(shifted, world, visible=np.ones(truth.shape, bool))
+    for key in ("recall", "f1", "free_coverage", "false_free"):
+        assert everything[f"{key}_visible"] == plain[key] == everything[key]
+    assert everything["visible_wall_cells"] == plain["facing_wall_cells"]
+    nothing = score_map(shifted, world, visible=np.zeros(truth.shape, bool))
+    assert all(nothing[k] == 0 for k in VISIBLE_KEYS)
+
+
+def test_visible_argument_checks(two_rooms):
+    world, seen = two_rooms
+    truth = occupancy_map_from_world(world)
+    with pytest.raises(ValueError, match="shape"):
+        score_map(truth, world, visible=seen[:-1])
+    with pytest.raises(ValueError, match="shape"):
+        score_map(truth, world, visible=seen.T)
+    for bad in (np.zeros((0, 2)), np.zeros((3, 3)), np.array([[np.nan, 1.0]])):
+        with pytest.raises(ValueError, match="path_xy"):
+            visible_from_path(world, bad)
+    with pytest.raises(ValueError, match="max_range"):
+        visible_from_path(world, ROOM_A_PATH, max_range=0)
+    with pytest.raises(ValueError, match="spacing"):
+        visible_from_path(world, ROOM_A_PATH, spacing=1e-9)
+    # a pose outside the grid sees nothing, and does not crash
+    assert not visible_from_path(world, np.array([[-50.0, -50.0]])).any()
+
+
+def test_visible_from_path_is_fast_on_the_office(worlds):
+    """~800 poses on the 31 x 21 m office at 5 cm: the brief asks for well under 2 s."""
+    world = worlds["office"]
+    loop = np.array([[1.0, 5.8], [29.0, 5.8], [29.0, 14.0], [1.0, 14.0], [1.0, 5.8]])
+    start = time.perf_counter()
+    seen = visible_from_path(world, loop, spacing=72.0 / 800)
+    elapsed = time.perf_counter() - start
+    assert seen.sum() > 50_000
+    assert elapsed < 2.0, f"{elapsed:.2f} s"
+
+
+# ---- trajectory files --------------------------------------------------------------------
+HEADER = "tick,time,robot,x,y,theta,odom_x,odom_y,odom_theta,v,w\n"
+
+
+def trajectory(rows: list[tuple[str, float, float]]) -> str:
+    """CSV text like sim2d.world writes; the odometry columns are deliberately wrong."""
+    return HEADER + "".join(f"{i},{i * 0.1:.6f},{name},{x},{y},0,99,99,0,0,0\n"
+                            for i, (name, x, y) in enumerate(rows))
+
+
+def test_read_path_csv_reads_the_true_pose_of_one_robot(tmp_path):
+    f = tmp_path / "trajectory.csv"
+    f.write_text(trajectory([("a", 1.0, 2.0), ("b", 5.0, 5.0), ("a", 1.5, 2.0), ("b", 6, 5)]))
+    assert read_path_csv(f).tolist() == [[1.0, 2.0], [1.5, 2.0]]          # the first robot
+    assert read_path_csv(f, robot="b").tolist() == [[5.0, 5.0], [6.0, 5.0]]
+    assert read_path_csv(str(f), "a").dtype == np.float64
+
+
+@pytest.mark.parametrize("text, robot, words, field", [
+    (None, None, "not found", None),
+    ("", None, "empty", "x"),
+    ("tick,time,robot,odom_x,odom_y\n0,0,a,1,2\n", None, "no column 'x' or 'y'", "x"),
+    ("x,y\n1,2\n", "a", "no column 'robot'", "robot"),
+    (HEADER, None, "no rows", None),
+    (trajectory([("a", 1.0, 2.0)]).replace(",2.0,", ",two,"), None, "'two'", "y"),
+    (trajectory([("a", 1.0, 2.0)]).replace(",1.0,", ",nan,"), None, "'nan'", "x"),
+    (HEADER + "0,0,a,1\n", None, "nothing", "y"),
+    (trajectory([("a", 1.0, 2.0)]), "c", "'a'", "robot"),
+])
+def test_bad_trajectories_are_clear_errors(tmp_path, text, robot, words, field):
+    f = tmp_path / "trajectory.csv"
+    if text is not None:
+        f.write_text(text)
+    with pytest.raises(TrajectoryError) as info:
+        read_path_csv(f, robot)
+    err = info.value
+    assert isinstance(err, SemmapError) and err.file == str(f) and err.field == field
+    assert words in str(err) and "\n" not in str(err)
+
+
+def test_a_bad_row_names_its_line(tmp_path):
+    f = tmp_path / "t.csv"
+    f.write_text(trajectory([("a", 1.0, 2.0), ("a", 1.0, 2.0), ("a", 1.0, 2.0)])
+                 .replace("2,0.200000,a,1.0,2.0", "2,0.200000,a,1.0,"))
+    with pytest.raises(TrajectoryError) as info:
+        read_path_csv(f)
+    assert info.value.line == 4 and "t.csv:4" in str(info.value)
+
+
+# ---- the command with --path -------------------------------------------------------------
+def corridor_run(tmp_path) -> Path:
+    f = tmp_path / "trajectory.csv"
+    f.write_text(trajectory([("robot", 0.9 + 0.1 * i, 1.1) for i in range(185)]))
+    return f
+
+
+def test_cli_score_with_a_path(cli, tmp_path):
+    f = corridor_run(tmp_path)
+    result = cli("score", world_path("corridor"), "--world", "corridor", "--path", f)
+    assert result.code == 0, result
+    assert "visible wall recall" in result.out and "visible free coverage" in result.out
+    assert "seen by sonar" in result.out
+    sonar = json.loads(cli("score", world_path("corridor"), "--world", "corridor", "--path", f,
+                           "--json").out)
+    # the sonar ring on a straight path sees both long walls, not every cell of the ends
+    assert 0.5 < sonar["visible_wall_cells"] / sonar["facing_wall_cells"] < 1.0
+    assert sonar["seen_by"] == "sonar" and sonar["range_m"] == 4.0
+    result = cli("score", world_path("corridor"), "--world", "corridor", "--path", f,
+                 "--seen-by", "sight", "--range", 1.5, "--json")
+    assert result.code == 0, result
+    doc = json.loads(result.out)
+    assert list(doc)[:7] == ["map", "world", "world_file", "path", "path_points", "seen_by",
+                             "range_m"]
+    assert list(doc)[7:] == list(METRIC_KEYS + VISIBLE_KEYS)
+    assert doc["range_m"] == 1.5 and doc["path_points"] == 185
+    assert doc["recall_visible"] == doc["free_coverage_visible"] == 1.0
+    # the path runs 1 m from both long walls and < 1 m from both ends: all is seen
+    assert doc["visible_wall_cells"] == doc["facing_wall_cells"]
+    assert doc["visible_free_cells"] == doc["reachable_free_cells"]
+    # with 0.5 m, neither wall is seen: the --range reaches the mask
+    result = cli("score", world_path("corridor"), "--world", "corridor", "--path", f,
+                 "--seen-by", "sight", "--range", 0.5, "--json")
+    doc = json.loads(result.out)
+    assert doc["visible_wall_cells"] == 0 and doc["recall_visible"] == 0.0
+    assert 0 < doc["visible_free_cells"] < doc["reachable_free_cells"]
+
+
+def test_cli_score_path_errors_exit_2_without_traceback(cli, tmp_path):
+    args = ("score", world_path("corridor"), "--world", "corridor")
+    result = cli(*args, "--path", tmp_path / "absent.csv")
+    assert result.code == 2 and "Traceback" not in result.err + result.out
+    assert "absent.csv" in result.err and "not found" in result.err
+    (tmp_path / "bad.csv").write_text("a,b\n1,2\n")
+    result = cli(*args, "--path", tmp_path / "bad.csv")
+    assert result.code == 2 and "bad.csv:1" in result.err and "'x'" in result.err
+    result = cli(*args, "--path", corridor_run(tmp_path), "--robot", "other")
+    assert result.code == 2 and "'robot'" in result.err and "--robot" in result.err
+    result = cli(*args, "--robot", "robot")
+    assert result.code == 2 and "--path" in result.err
+    result = cli(*args, "--path", corridor_run(tmp_path), "--range", 0)
+    assert result.code == 2 and "Traceback" not in result.err
+
+
+def test_installed_command_reports_a_malformed_trajectory(tmp_path):
+    semmap = Path(sys.executable).with_name("semmap")
+    (tmp_path / "t.csv").write_text(HEADER + "0,0,robot,1.0,oops,0,0,0,0,0,0\n")
+    proc = subprocess.run([str(semmap), "score", str(world_path("corridor")), "--world",
+                           "corridor", "--path", str(tmp_path / "t.csv")],
+                          capture_output=True, text=True, timeout=60, check=False)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr + proc.stdout
+    assert "t.csv:2" in proc.stderr and "'oops'" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1

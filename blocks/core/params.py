@@ -11,6 +11,21 @@ _NAME_TYPES = {v: k for k, v in _TYPE_NAMES.items()}
 _MISSING = object()
 
 
+_YAML11_WORDS = {True: ("on", "yes", "true", "y"), False: ("off", "no", "false", "n")}
+
+
+def _yaml11_word(value: bool, choices: tuple) -> Any:
+    """The choice a YAML 1.1 boolean was typed as (``on``/``off``, ``yes``/``no``...).
+
+    YAML 1.1 reads ``specular: off`` as ``False``; when the parameter is text
+    and one of its choices is such a word, that word was meant.
+    """
+    for word in _YAML11_WORDS[value]:
+        if word in choices:
+            return word
+    return value
+
+
 @dataclass(frozen=True)
 class Param:
     """A typed parameter with a one-line doc.
@@ -66,6 +81,8 @@ class Param:
             if not isinstance(value, bool):
                 raise ValueError(f"expected true or false, got {_show(value)}")
         elif t is str:
+            if isinstance(value, bool) and self.choices is not None:
+                value = _yaml11_word(value, self.choices)
             if not isinstance(value, str):
                 raise ValueError(f"expected text, got {_show(value)}")
         elif t is list:

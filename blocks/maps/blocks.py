@@ -1,9 +1,11 @@
-"""Mapping blocks: thin adapters over :mod:`blocks.maps` (paper online map, log-odds map).
+"""Mapping blocks: thin adapters over :mod:`blocks.maps` (paper online map, its processed
+form, log-odds map, offline map).
 
 Every map block writes its map at the end of the run into ``DIR/maps/`` in
 ROS map_server format (YAML + PGM, with a PNG preview) and, when it knows the
 world (parameter ``world``, set by ``--world``), scores it against the ground
-truth into run.json.
+truth into run.json.  Connect the optional ``truth`` input to the true pose
+and the scores also cover what the run could see (the ``*_visible`` keys).
 """
 from __future__ import annotations
 
@@ -28,6 +30,26 @@ ROBOT = Param(str, "atrv_mini", "robot model or robot YAML (sonar poses and rang
 RESOLUTION = Param(float, 0.05, "map cell size", unit="m", min=0.005, max=1.0)
 WORLD = Param(str, "", "world to score the map against (name or YAML; empty: do not score)",
               role="world")
+TRUTH = Port.array("float64", (3,), unit="m,m,rad", frame="world", required=False,
+                   doc="true pose, only to score against what the run could see (optional)")
+MAP_HANDLE = Port(kind="handle", doc="the map being built (snapshot() gives an OccupancyMap)")
+
+_VISIBLE_CACHE: dict[tuple, np.ndarray] = {}
+
+
+def _visible(world: Any, world_key: str, path: np.ndarray, robot: str) -> np.ndarray:
+    """The cells the run's sonar could see (an ideal sonar on the true path), computed
+    once per run for all map blocks."""
+    from .features import sensor_poses_along
+    from .visibility import sonar_visible
+    key = (world_key, robot, path.shape, hash(path.tobytes()))
+    if key not in _VISIBLE_CACHE:
+        spec = _robot(robot)
+        sensors = sensor_poses_along(path, spec.sonar_mounts).reshape(-1, 3)
+        _VISIBLE_CACHE.clear()
+        _VISIBLE_CACHE[key] = sonar_visible(world, sensors, spec.sonar.cone_deg,
+                                            spec.sonar.max_range)
+    return _VISIBLE_CACHE[key]
 
 
 def _robot(model: str):
@@ -43,19 +65,36 @@ class _MapWriter(Block):
     def occupancy_map(self) -> OccupancyMap | None:
         raise NotImplementedError
 
+    def reset(self) -> None:
+        self._truth: list[np.ndarray] = []
+
+    def record_truth(self, truth: np.ndarray | None) -> None:
+        """Keep the true path (for scoring only: the map never sees it)."""
+        if truth is not None:
+            self._truth.append(np.asarray(truth, dtype=np.float64)[:3].copy())
+
+    def write_extras(self, folder: Any) -> list[Any]:
+        """Files besides the map (wall polylines...); returns their paths."""
+        return []
+
     def finish(self) -> None:
         m = self.occupancy_map()
         if m is None or self.ctx.out_dir is None:
             return
         path = self.output_path(f"maps/{self.map_name}.yaml")
-        for written in write_map(path, m)[1:]:
+        for written in write_map(path, m)[1:] + self.write_extras(path.parent):
             self.ctx.outputs.append(str(written))
         if self.p.world:
             from sim2d.blocks import resolve_world
             from sim2d.world import load_world
 
             from .score import score_map
-            for name, value in score_map(m, load_world(resolve_world(self.p.world))).items():
+            world_file = resolve_world(self.p.world)
+            world = load_world(world_file)
+            visible = None
+            if getattr(self, "_truth", None):
+                visible = _visible(world, str(world_file), np.array(self._truth), self.p.robot)
+            for name, value in score_map(m, world, visible=visible).items():
                 self.report(name, value)
 
 
@@ -96,17 +135,29 @@ class PaperMap(_MapWriter):
     """
 
     map_name = "online"
-    inputs = {"local": LOCAL, "pose": POSE}
-    params = {"resolution": RESOLUTION, "world": WORLD}
+    inputs = {"local": LOCAL, "pose": POSE, "truth": TRUTH}
+    outputs = {"map": MAP_HANDLE}
+    params = {"resolution": RESOLUTION, "world": WORLD, "robot": ROBOT}
 
     def setup(self) -> None:
         self.map = PaperGlobalMap(self.p.resolution)
 
     def reset(self) -> None:
+        super().reset()
         self.map.clear()
 
-    def step(self, local: np.ndarray, pose: np.ndarray) -> None:
+    def step(self, local: np.ndarray, pose: np.ndarray,
+             truth: np.ndarray | None = None) -> dict[str, Any]:
         self.map.add(local, pose)
+        self.record_truth(truth)
+        return {"map": self}
+
+    def snapshot(self) -> OccupancyMap | None:
+        """The map as it stands (for the processing block)."""
+        levels, corner = self.map.levels()
+        if levels.size == 0:
+            return None
+        return paper_levels_to_map(levels, corner, self.p.resolution)
 
     def occupancy_map(self) -> OccupancyMap | None:
         levels, (ix, iy) = self.map.levels()
@@ -143,7 +194,7 @@ class LogOddsMapBlock(_MapWriter):
     """
 
     map_name = "probabilistic"
-    inputs = {"ranges": RANGES, "pose": POSE}
+    inputs = {"ranges": RANGES, "pose": POSE, "truth": TRUTH}
     params = {
         "robot": ROBOT, "resolution": RESOLUTION, "world": WORLD,
         "l_free": Param(float, -0.4, "log-odds added to cells a beam crossed", max=-1e-6),
@@ -164,9 +215,11 @@ class LogOddsMapBlock(_MapWriter):
         self.map = LogOddsMap(self.model, resolution=self.p.resolution)  # tables built once
 
     def reset(self) -> None:
+        super().reset()
         self.map.clear()
 
-    def step(self, ranges: np.ndarray, pose: np.ndarray) -> None:
+    def step(self, ranges: np.ndarray, pose: np.ndarray, truth: np.ndarray | None = None) -> None:
+        self.record_truth(truth)
         x, y, theta = (float(v) for v in pose[:3])
         c, s = math.cos(theta), math.sin(theta)
         mx, my, mt = self.mounts[:, 0], self.mounts[:, 1], self.mounts[:, 2]
@@ -181,3 +234,113 @@ class LogOddsMapBlock(_MapWriter):
         self.report("tiles", self.map.grid.n_tiles)
         origin = (ix * self.p.resolution, iy * self.p.resolution, 0.0)
         return OccupancyMap(p, self.p.resolution, origin)
+
+
+@block("maps.process_map", category="maps")
+class ProcessMap(_MapWriter):
+    """The paper's processed online map: smoothing, edge detection and border tracing.
+
+    At the end of the run the online map is cleaned (morphology, median,
+    small regions dropped, small holes filled) and its free-space borders are
+    traced into wall polylines (OpenCV).  Writes ``maps/processed.yaml`` and
+    the walls as GeoJSON in the map frame, ``maps/processed_walls.geojson``.
+    """
+
+    map_name = "processed"
+    inputs = {"map": MAP_HANDLE, "truth": TRUTH}
+    params = {
+        "world": WORLD, "robot": ROBOT,
+        "smooth": Param(float, 0.15, "radius of the opening that removes slivers", unit="m",
+                        min=0.0),
+        "min_region": Param(float, 0.25, "free regions and holes smaller than this are noise",
+                            unit="m^2", min=0.0),
+        "simplify": Param(float, 0.05, "polyline simplification tolerance", unit="m", min=0.0),
+        "min_wall": Param(float, 0.3, "shorter polylines are dropped", unit="m", min=0.0),
+    }
+
+    def reset(self) -> None:
+        super().reset()
+        self._source: Any = None
+        self._processed: Any = None
+
+    def step(self, map: Any, truth: np.ndarray | None = None) -> None:  # noqa: A002
+        self._source = map
+        self.record_truth(truth)
+
+    def occupancy_map(self) -> OccupancyMap | None:
+        from .processing import process_occupancy_map
+        online = self._source.snapshot() if self._source is not None else None
+        if online is None:
+            return None
+        self._processed = process_occupancy_map(
+            online, smooth_m=self.p.smooth, min_region_m2=self.p.min_region,
+            simplify_m=self.p.simplify, min_wall_m=self.p.min_wall)
+        self.report("walls", len(self._processed.walls))
+        return self._processed.map
+
+    def write_extras(self, folder: Any) -> list[Any]:
+        from .processing import write_walls_geojson
+        kinds = [{"kind": k} for k in self._processed.kinds]
+        return [write_walls_geojson(folder / "processed_walls.geojson", self._processed.walls,
+                                    feature_properties=kinds,
+                                    properties={"source": "processed online map"})]
+
+
+@block("maps.offline_map", category="maps")
+class OfflineMapBlock(_MapWriter):
+    """The paper's high-resolution offline map, with O'Sullivan's linear feature prediction.
+
+    Records every scan and odometry pose; at the end, corrects the odometry
+    drift against the walls, extracts linear features, judges every reading
+    by them and draws the map: echo terminations darkened, specular losses
+    stopped at the predicted wall, max-range readings marking nothing,
+    unexplored space left unknown.  Writes ``maps/offline.yaml`` and the
+    features as GeoJSON, ``maps/offline_walls.geojson``.
+    """
+
+    map_name = "offline"
+    inputs = {"ranges": RANGES, "pose": POSE, "truth": TRUTH}
+    params = {
+        "robot": ROBOT, "world": WORLD,
+        "resolution": Param(float, 0.025, "offline map cell size", unit="m", min=0.005,
+                            max=1.0),
+        "correct_drift": Param(bool, True, "correct the odometry against the walls first"),
+        "agree_tol": Param(float, 0.1, "an echo this close to its predicted range confirms it",
+                           unit="m", min=0.0),
+        "min_support": Param(int, 8, "features need this many echoes", min=2),
+    }
+
+    def reset(self) -> None:
+        super().reset()
+        self._scans: list[np.ndarray] = []
+        self._poses: list[np.ndarray] = []
+        self._result: Any = None
+
+    def step(self, ranges: np.ndarray, pose: np.ndarray, truth: np.ndarray | None = None) -> None:
+        self._scans.append(np.array(ranges, dtype=np.float64))
+        self._poses.append(np.array(pose[:3], dtype=np.float64))
+        self.record_truth(truth)
+
+    def occupancy_map(self) -> OccupancyMap | None:
+        from .offline import OfflineMapParams, build_offline_map
+        if not self._scans:
+            return None
+        spec = _robot(self.p.robot)
+        params = OfflineMapParams(resolution=self.p.resolution, agree_tol=self.p.agree_tol,
+                                  min_support=self.p.min_support,
+                                  correct_drift=self.p.correct_drift)
+        self._result = build_offline_map(np.array(self._poses), np.array(self._scans),
+                                         spec.sonar_mounts, cone_deg=spec.sonar.cone_deg,
+                                         max_range=spec.sonar.max_range, params=params)
+        self.report("features", len(self._result.features))
+        self.report("readings", self._result.class_counts())
+        return self._result.map
+
+    def write_extras(self, folder: Any) -> list[Any]:
+        from .processing import write_walls_geojson
+        features = self._result.features
+        return [write_walls_geojson(
+            folder / "offline_walls.geojson", [np.array([f.p0, f.p1]) for f in features],
+            feature_properties=[{"support": f.support, "residual_m": round(f.residual, 4)}
+                                for f in features],
+            properties={"source": "offline map linear features"})]

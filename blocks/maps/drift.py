@@ -1,0 +1,200 @@
+"""Odometry drift correction from the walls the sonar sees, for the offline map.
+
+Odometry heading error grows with every metre (a degree or two over an office
+lap, so half a metre sideways at the far end of a corridor), and a map built
+on it bends its walls and doubles them where the robot passes twice.
+Offline, the whole run is available, so the trajectory can be corrected
+against the walls already mapped, in the spirit of Amigoni, Gasparini and
+Gini's map building without odometry (ICRA 2004): line segments of each new
+stretch are matched to the segments mapped so far, and the rigid motion that
+best aligns them corrects the rest of the trajectory.
+
+Each chunk of scans (about half a metre of travel) gives local line features
+(:func:`blocks.maps.features.extract_linear_features`).  A local feature
+matches a mapped one that faces the same way, lies within ``max_offset`` of
+its line and overlaps or continues it.  A small rotation and shift is then
+solved by least squares on the points' distances to their matched lines,
+with a weak prior towards no change, so a corridor (all walls parallel)
+corrects heading and sideways drift and leaves the unobservable along-wall
+drift alone.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .features import (LinearFeature, _mergeable, _refit, extract_linear_features,
+                       sensor_poses_along)
+
+__all__ = ["DriftCorrection", "correct_odometry"]
+
+
+@dataclass(frozen=True)
+class DriftCorrection:
+    """Parameters of :func:`correct_odometry`.
+
+    Attributes
+    ----------
+    chunk
+        Scans per chunk (at 10 Hz, 10 scans = 1 s, about 0.4 m of travel).
+    max_offset
+        Largest distance (m) between a local feature and the mapped line it matches.
+    max_angle_deg
+        Largest angle between matched lines.
+    max_gap
+        Largest gap (m) along the line between matched features.
+    min_length
+        Only mapped walls at least this long (m) are trusted: short pieces
+        (door jambs, furniture) are too easily matched to the wrong thing.
+    prior
+        Weight of the "no shift" prior, relative to one matched point.
+    heading_prior
+        Weight of the "no turn" prior: a chunk's points span too little to
+        measure its heading well, so heading changes slowly, from many chunks.
+    max_step
+        Corrections larger than this (m, or rad for heading) are not trusted.
+    robust_scale
+        Distance (m) at which a point's pull on the correction is halved.
+    """
+
+    chunk: int = 10
+    max_offset: float = 0.35
+    max_angle_deg: float = 8.0
+    max_gap: float = 0.6
+    min_length: float = 0.0
+    prior: float = 5.0
+    heading_prior: float = 10.0
+    max_step: float = 0.15
+    robust_scale: float = 0.05
+
+
+def _matches(f: LinearFeature, g: LinearFeature, p: DriftCorrection) -> float | None:
+    """How far f lies from g's line if f continues g (None if it does not)."""
+    if g.length < p.min_length or np.dot(f.normal, g.normal) < math.cos(
+            math.radians(p.max_angle_deg)):
+        return None
+    direction = np.array([g.normal[1], -g.normal[0]])
+    centre = g.p0
+    offset = abs(float(np.dot((f.p0 + f.p1) / 2 - centre, g.normal)))
+    if offset > p.max_offset:
+        return None
+    g0, g1 = sorted((0.0, float(np.dot(g.p1 - centre, direction))))
+    f0, f1 = sorted((float(np.dot(f.p0 - centre, direction)),
+                     float(np.dot(f.p1 - centre, direction))))
+    if max(g0, f0) - min(g1, f1) > p.max_gap:
+        return None
+    return offset
+
+
+def _solve(points: np.ndarray, normals: np.ndarray, offsets: np.ndarray, pivot: np.ndarray,
+           prior: float, heading_prior: float, scale: float, rounds: int = 4) -> np.ndarray:
+    """Small rigid motion (dtheta, dx, dy) about ``pivot`` that moves ``points`` onto
+    their lines ``normal . x = offset``: linearised least squares with a prior towards
+    no motion, reweighted (Cauchy, ``scale`` m) so a wrong match cannot drag it."""
+    rel = points - pivot
+    lever = normals[:, 0] * -rel[:, 1] + normals[:, 1] * rel[:, 0]
+    a = np.column_stack([lever, normals])
+    b = offsets - np.einsum("ij,ij->i", normals, points)
+    prior_rows = np.diag([heading_prior, prior, prior])
+    weights = np.ones(len(b))
+    delta = np.zeros(3)
+    for _ in range(rounds):
+        root = np.sqrt(weights)[:, None]
+        delta = np.linalg.lstsq(np.vstack([a * root, prior_rows]),
+                                np.concatenate([b * root[:, 0], np.zeros(3)]), rcond=None)[0]
+        weights = 1.0 / (1.0 + ((a @ delta - b) / scale) ** 2)
+    return delta
+
+
+def correct_odometry(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
+                     mounts: np.ndarray, cone_deg: float = 30.0,
+                     params: DriftCorrection | None = None) -> np.ndarray:
+    """Odometry poses (T, 3) corrected against the walls mapped before them.
+
+    Parameters
+    ----------
+    poses
+        (T, 3) odometry x, y, theta, one per scan.
+    ranges, echo
+        (T, N) sonar readings and echo flags.
+    mounts
+        (N, 3) sensor mounts on the robot.
+    cone_deg
+        The sonar's cone angle.
+    params
+        :class:`DriftCorrection`.
+
+    Returns
+    -------
+    (T, 3) array
+        The corrected poses; the first chunk is taken as is (the map frame
+        is the start pose's frame).
+    """
+    p = params or DriftCorrection()
+    poses = np.asarray(poses, dtype=np.float64)
+    out = poses.copy()
+    rot = np.eye(2)
+    shift = np.zeros(2)
+    dtheta_total = 0.0
+    mapped: list[LinearFeature] = []
+    for start in range(0, len(poses), p.chunk):
+        part = slice(start, min(start + p.chunk, len(poses)))
+        out[part, :2] = poses[part, :2] @ rot.T + shift
+        out[part, 2] = poses[part, 2] + dtheta_total
+        local = _local_features(out[part], ranges[part], echo[part], mounts, cone_deg)
+        if mapped and local:
+            delta = _alignment(local, mapped, out[part, :2].mean(axis=0), p)
+            if delta is not None:
+                dth, dx, dy = delta
+                c, s = math.cos(dth), math.sin(dth)
+                r_delta = np.array([[c, -s], [s, c]])
+                pivot = out[part, :2].mean(axis=0)
+                rot = r_delta @ rot
+                shift = pivot + r_delta @ (shift - pivot) + np.array([dx, dy])
+                dtheta_total += dth
+                out[part, :2] = poses[part, :2] @ rot.T + shift
+                out[part, 2] = poses[part, 2] + dtheta_total
+                local = _local_features(out[part], ranges[part], echo[part], mounts, cone_deg)
+        for f in local:
+            for i, g in enumerate(mapped):
+                if _mergeable(g, f, math.radians(p.max_angle_deg), 0.1, 0.3):
+                    mapped[i] = _refit(np.vstack([g.points, f.points]), g.normal)
+                    break
+            else:
+                mapped.append(f)
+    out[:, 2] = (out[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    return out
+
+
+def _local_features(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
+                    mounts: np.ndarray, cone_deg: float) -> list[LinearFeature]:
+    sensors = sensor_poses_along(poses, mounts)
+    return extract_linear_features(sensors, ranges, echo, cone_deg, min_points=5,
+                                   min_length=0.2)
+
+
+def _alignment(local: list[LinearFeature], mapped: list[LinearFeature], pivot: np.ndarray,
+               p: DriftCorrection) -> np.ndarray | None:
+    """The correction that aligns the chunk's features with the mapped ones, if any match."""
+    points, normals, offsets = [], [], []
+    for f in local:
+        best = None
+        for g in mapped:
+            offset = _matches(f, g, p)
+            if offset is not None and (best is None or offset < best[0]):
+                best = (offset, g)
+        if best is None:
+            continue
+        g = best[1]
+        points.append(f.points)
+        normals.append(np.repeat(g.normal[None, :], len(f.points), axis=0))
+        offsets.append(np.full(len(f.points), float(np.dot(g.normal, (g.p0 + g.p1) / 2))))
+    if not points:
+        return None
+    delta = _solve(np.vstack(points), np.vstack(normals), np.concatenate(offsets), pivot, p.prior,
+                   p.heading_prior, p.robust_scale)
+    if np.any(np.abs(delta) > p.max_step):
+        return None
+    return delta

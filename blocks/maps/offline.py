@@ -1,0 +1,254 @@
+"""The high-resolution offline map (the paper's section 6), from recorded readings and poses.
+
+After exploration every reading is known at once, so each can be judged by
+the others before it is drawn (:mod:`blocks.maps.features`):
+
+* linear features (walls) are extracted from runs of collinear echoes;
+* every reading is predicted from the features; a reading that agrees with
+  them gains confidence, one that contradicts them loses it;
+* an echo's termination is darkened (an occupied arc at the reading); a
+  reading with no echo darkens nothing;
+* a reading with no echo where a feature predicts a wall lost its echo to
+  specular reflection: its free space ends at the predicted wall, instead of
+  running through it to the maximum range;
+* the features themselves are drawn as walls, weighted by their support;
+* nothing marks the edge of the explored area: unexplored space stays
+  unknown (unbounded), not walled in as on the online map.
+
+Evidence adds up as log-odds (as in :mod:`blocks.maps.logodds`) on a finer
+grid than the online map, by default 2.5 cm.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cones import cone_tables
+from .drift import DriftCorrection, correct_odometry
+from .features import (LinearFeature, extract_linear_features, merge_features, predict_ranges,
+                       sensor_poses_along)
+from .logodds import log_odds_to_probability
+from .mapio import OccupancyMap
+
+__all__ = ["OfflineMapParams", "OfflineMap", "build_offline_map", "classify_readings",
+           "READING_CLASSES"]
+
+#: What the feature prediction made of each reading (the codes of :func:`classify_readings`).
+READING_CLASSES = ("confirmed", "unexplained", "contradicted", "specular", "open")
+
+
+@dataclass(frozen=True)
+class OfflineMapParams:
+    """Tunable parameters of the offline map.
+
+    Attributes
+    ----------
+    resolution
+        Cell size (m) of the offline map.
+    agree_tol
+        An echo within this distance (m) of its predicted range agrees with the features.
+    arc_thickness
+        Depth (m) of the darkened termination of an echo.
+    l_free, l_occ
+        Log-odds per beam for a crossed cell and for a cell on the termination.
+    confirmed, unexplained, contradicted
+        Confidence weights of echoes that agree with the features, that no
+        feature predicts (furniture, corners), and that reach beyond a
+        predicted feature (a doorway the feature spans, or a multipath echo).
+    open_weight
+        Confidence of the free space of a reading with no echo and no feature
+        in its cone (open space, or a wall no feature describes).
+    feature_logodds
+        Log-odds drawn along a feature with ``full_support`` echoes (less
+        for fewer).
+    min_support
+        Features with fewer echoes are ignored.
+    clamp
+        Log-odds are kept within +-clamp.
+    correct_drift
+        Correct the odometry against the walls first (:mod:`blocks.maps.drift`).
+    """
+
+    resolution: float = 0.025
+    agree_tol: float = 0.1
+    arc_thickness: float = 0.05
+    l_free: float = -0.4
+    l_occ: float = 0.85
+    confirmed: float = 1.0
+    unexplained: float = 0.5
+    contradicted: float = 0.25
+    open_weight: float = 1.0
+    feature_logodds: float = 3.0
+    full_support: int = 30
+    min_support: int = 8
+    clamp: float = 4.0
+    correct_drift: bool = True
+
+    def __post_init__(self) -> None:
+        if not 0 < self.resolution <= 1:
+            raise ValueError(f"resolution must be in (0, 1] m, got {self.resolution}")
+        if self.l_free >= 0 or self.l_occ <= 0:
+            raise ValueError("l_free must be negative and l_occ positive")
+        for name in ("confirmed", "unexplained", "contradicted", "open_weight"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ValueError(f"{name} must be a weight in [0, 1]")
+
+
+@dataclass
+class OfflineMap:
+    """The offline map and what went into it."""
+
+    map: OccupancyMap
+    features: list[LinearFeature]
+    reading_class: np.ndarray  # (T, N) index into READING_CLASSES
+    predicted: np.ndarray  # (T, N) predicted ranges (m), inf where no feature
+    poses: np.ndarray  # (T, 3) the poses the map was drawn from (drift-corrected or not)
+
+    def class_counts(self) -> dict[str, int]:
+        return {name: int((self.reading_class == i).sum()) for i, name in
+                enumerate(READING_CLASSES)}
+
+
+def classify_readings(ranges: np.ndarray, echo: np.ndarray, predicted: np.ndarray,
+                      max_range: float, agree_tol: float) -> np.ndarray:
+    """Sort readings by how the features explain them (indices into :data:`READING_CLASSES`).
+
+    confirmed: an echo within ``agree_tol`` of the prediction; unexplained:
+    an echo nearer than predicted (or with nothing predicted); contradicted:
+    an echo beyond the predicted wall; specular: no echo, yet a feature in
+    range; open: no echo and no feature in range.
+    """
+    cls = np.where(echo, 1, 4)
+    cls = np.where(echo & (np.abs(ranges - predicted) <= agree_tol), 0, cls)
+    cls = np.where(echo & (ranges > predicted + agree_tol), 2, cls)
+    cls = np.where(~echo & (predicted < max_range), 3, cls)
+    return cls.astype(np.int8)
+
+
+def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
+                sensors: np.ndarray, free_to: np.ndarray, hit_at: np.ndarray,
+                w_free: np.ndarray, w_occ: np.ndarray, p: OfflineMapParams,
+                cone_deg: float, reach: int) -> None:
+    """Add every beam's log-odds to ``log_odds`` in place (rows y up, ``corner`` = (ix, iy)
+    of element [0, 0]).  ``hit_at`` is NaN for beams that darken nothing."""
+    tables = cone_tables(p.resolution, cone_deg, reach)
+    res = p.resolution
+    half_arc = p.arc_thickness / 2
+    ix = np.floor(sensors[:, 0] / res).astype(int) - corner[0]
+    iy = np.floor(sensors[:, 1] / res).astype(int) - corner[1]
+    degrees = np.round(np.degrees(sensors[:, 2])).astype(int) % 360
+    free_code = np.floor(2 * free_to / res).astype(int)
+    hit = np.isfinite(hit_at)
+    lo_code = np.where(hit, np.ceil(2 * (np.nan_to_num(hit_at) - half_arc) / res), 0).astype(int)
+    hi_code = np.where(hit, np.floor(2 * (np.nan_to_num(hit_at) + half_arc) / res), -1).astype(int)
+    for i in range(len(sensors)):
+        far = max(free_code[i], hi_code[i])
+        if far <= 0:
+            continue
+        dr, dc, codes = tables[degrees[i]]
+        radius = far // 2 + 1  # cells
+        h, w = codes.shape
+        # crop the cone to the box of the reading's reach around the apex
+        r0, r1 = max(0, -radius - dr), min(h, radius + 1 - dr)
+        c0, c1 = max(0, -radius - dc), min(w, radius + 1 - dc)
+        if r0 >= r1 or c0 >= c1:
+            continue
+        sub = codes[r0:r1, c0:c1]
+        rows = slice(iy[i] + dr + r0, iy[i] + dr + r1)
+        cols = slice(ix[i] + dc + c0, ix[i] + dc + c1)
+        delta = np.where(sub < free_code[i], np.float32(p.l_free * w_free[i]), np.float32(0))
+        if hit[i]:
+            delta[(sub >= lo_code[i]) & (sub <= hi_code[i])] = p.l_occ * w_occ[i]
+        log_odds[rows, cols] += delta
+        seen[rows, cols] |= delta != 0
+
+
+def _draw_features(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
+                   features: list[LinearFeature], p: OfflineMapParams) -> None:
+    """Draw each feature as a one-cell line of log-odds, stronger with more support."""
+    import cv2
+
+    evidence = np.zeros(log_odds.shape, dtype=np.float32)
+    for f in sorted(features, key=lambda f: f.support):  # where lines cross, the stronger wins
+        strength = p.feature_logodds * min(1.0, f.support / p.full_support)
+        a = np.round(f.p0 / p.resolution - np.array(corner) - 0.5).astype(int)
+        b = np.round(f.p1 / p.resolution - np.array(corner) - 0.5).astype(int)
+        cv2.line(evidence, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), float(strength), 1,
+                 cv2.LINE_8)
+    log_odds += evidence
+    seen |= evidence > 0
+
+
+def build_offline_map(poses: np.ndarray, ranges: np.ndarray, mounts: np.ndarray, *,
+                      echo: np.ndarray | None = None, cone_deg: float = 30.0,
+                      max_range: float = 4.0, max_range_margin: float = 0.05,
+                      params: OfflineMapParams | None = None) -> OfflineMap:
+    """The offline map of a recorded exploration.
+
+    Parameters
+    ----------
+    poses
+        (T, 3) robot poses x, y, theta in the map frame (odometry), one per scan.
+    ranges
+        (T, N) sonar readings (m).
+    mounts
+        (N, 3) sensor mounts x, y, theta on the robot.
+    echo
+        (T, N) whether each reading was a real echo; by default a reading
+        within ``max_range_margin`` of ``max_range`` is "no echo".
+    cone_deg, max_range
+        The sonar's cone angle (deg) and maximum range (m).
+    params
+        :class:`OfflineMapParams`.
+
+    Returns
+    -------
+    OfflineMap
+        The map (cells no beam or feature touched are unknown), the merged
+        features, and each reading's class and predicted range.
+    """
+    p = params or OfflineMapParams()
+    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    ranges = np.asarray(ranges, dtype=np.float64)
+    if ranges.ndim != 2 or len(ranges) != len(poses) or ranges.shape[1] != len(mounts):
+        raise ValueError(f"ranges must be (T, {len(mounts)}) with T = {len(poses)} poses, "
+                         f"got {ranges.shape}")
+    if echo is None:
+        echo = ranges < max_range - max_range_margin
+    echo = np.asarray(echo, dtype=bool)
+    if p.correct_drift:
+        poses = correct_odometry(poses, ranges, echo, mounts, cone_deg, DriftCorrection())
+    sensors = sensor_poses_along(poses, mounts)  # (T, N, 3)
+    features = [f for f in merge_features(extract_linear_features(sensors, ranges, echo, cone_deg))
+                if f.support >= p.min_support]
+    flat = sensors.reshape(-1, 3)
+    predicted = predict_ranges(flat, features, cone_deg, max_range).reshape(ranges.shape)
+    cls = classify_readings(ranges, echo, predicted, max_range, p.agree_tol)
+
+    # per reading: how far to clear, where (if anywhere) to darken, with what confidence
+    r, c = ranges.ravel(), cls.ravel()
+    weight = np.array([p.confirmed, p.unexplained, p.contradicted, 1.0, p.open_weight])[c]
+    half_arc = p.arc_thickness / 2
+    specular = c == 3
+    free_to = np.where(specular, predicted.ravel() - half_arc,
+                       np.where(echo.ravel(), r - half_arc, np.minimum(r, max_range)))
+    hit_at = np.where(echo.ravel(), r, np.nan)
+
+    reach = int(math.ceil((max_range + p.arc_thickness) / p.resolution)) + 1
+    res = p.resolution
+    x0 = math.floor(flat[:, 0].min() / res) - reach - 2
+    y0 = math.floor(flat[:, 1].min() / res) - reach - 2
+    x1 = math.floor(flat[:, 0].max() / res) + reach + 3
+    y1 = math.floor(flat[:, 1].max() / res) + reach + 3
+    log_odds = np.zeros((y1 - y0, x1 - x0), dtype=np.float32)
+    seen = np.zeros(log_odds.shape, dtype=bool)
+    _draw_beams(log_odds, seen, (x0, y0), flat, free_to, hit_at, weight, weight, p,
+                cone_deg, reach)
+    _draw_features(log_odds, seen, (x0, y0), features, p)
+    np.clip(log_odds, -p.clamp, p.clamp, out=log_odds)
+    occupancy = np.where(seen, log_odds_to_probability(log_odds.astype(np.float64)), np.nan)
+    m = OccupancyMap(occupancy, res, (x0 * res, y0 * res, 0.0))
+    return OfflineMap(map=m, features=features, reading_class=cls, predicted=predicted,
+                      poses=poses)

@@ -1,0 +1,79 @@
+"""What a run's sonar could have seen: the yardstick for map coverage and recall.
+
+A sonar reports the nearest surface anywhere in its 30-degree cone, so it
+sees into a room through a door only when the whole cone fits through the
+doorway; a line-of-sight test from the path would count rooms the sonar never
+sampled.  Here every reading of the run is replayed on the true floor plan
+with an ideal sonar (no noise, no specular loss): the cells inside each cone
+up to the true nearest surface, plus the surface cells at that range, are
+what the run could see.  A map cannot be blamed for cells outside that set.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .cones import cone_tables
+from .mapio import occupancy_map_from_world
+
+if TYPE_CHECKING:
+    from sim2d.world import World
+
+__all__ = ["sonar_visible"]
+
+
+def sonar_visible(world: World, sensors: np.ndarray, cone_deg: float = 30.0,
+                  max_range: float = 4.0, chunk: int = 4096) -> np.ndarray:
+    """The cells of the world's grid that an ideal sonar at ``sensors`` would sweep.
+
+    Parameters
+    ----------
+    world
+        The world (its wall capsules give the true ranges).
+    sensors
+        (M, 3) true sensor poses x, y, heading in the world frame.
+    cone_deg, max_range
+        The sonar's cone angle (deg) and maximum range (m).
+
+    Returns
+    -------
+    (H, W) bool array
+        On the grid of :func:`blocks.maps.mapio.occupancy_map_from_world`
+        (rows y up): True where some cone reached, up to and including the
+        surface it would echo from.
+    """
+    from sim2d.sonar import cone_ranges
+
+    truth = occupancy_map_from_world(world)
+    res = float(truth.resolution)
+    shape = truth.occupancy.shape
+    sensors = np.asarray(sensors, dtype=np.float64).reshape(-1, 3)
+    ranges = np.empty(len(sensors))
+    half = math.radians(cone_deg) / 2
+    for start in range(0, len(sensors), chunk):
+        ranges[start:start + chunk], _ = cone_ranges(sensors[start:start + chunk],
+                                                     world.segments, half, max_range)
+    ranges = np.minimum(ranges, max_range)
+    reach = int(math.ceil(max_range / res)) + 2
+    tables = cone_tables(res, cone_deg, reach)
+    pad = reach + 1
+    seen = np.zeros((shape[0] + 2 * pad, shape[1] + 2 * pad), dtype=bool)
+    ix = np.floor((sensors[:, 0] - truth.origin[0]) / res).astype(int) + pad
+    iy = np.floor((sensors[:, 1] - truth.origin[1]) / res).astype(int) + pad
+    degrees = np.round(np.degrees(sensors[:, 2])).astype(int) % 360
+    limit = np.floor(2 * (ranges / res + 1.0)).astype(int)  # one cell beyond: the surface
+    inside = (ix >= 0) & (iy >= 0) & (ix < seen.shape[1]) & (iy < seen.shape[0])
+    for i in np.flatnonzero(inside):
+        dr, dc, codes = tables[degrees[i]]
+        radius = limit[i] // 2 + 1
+        h, w = codes.shape
+        r0, r1 = max(0, -radius - dr), min(h, radius + 1 - dr)
+        c0, c1 = max(0, -radius - dc), min(w, radius + 1 - dc)
+        rows = slice(iy[i] + dr + r0, iy[i] + dr + r1)
+        cols = slice(ix[i] + dc + c0, ix[i] + dc + c1)
+        if rows.start < 0 or cols.start < 0:
+            continue  # a sensor outside the floor plan: nothing of the grid to see
+        seen[rows, cols] |= codes[r0:r1, c0:c1] <= limit[i]
+    return seen[pad:pad + shape[0], pad:pad + shape[1]]

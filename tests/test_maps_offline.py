@@ -1,0 +1,193 @@
+"""The offline map's parts without the framework: features, prediction, drift, the map itself."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from blocks.maps.drift import correct_odometry
+from blocks.maps.features import (extract_linear_features, merge_features, predict_ranges,
+                                  sensor_poses_along)
+from blocks.maps.logodds import InverseSonarModel, LogOddsMap
+from blocks.maps.offline import (READING_CLASSES, OfflineMapParams, build_offline_map,
+                                 classify_readings)
+from sim2d.robot import load_robot
+from sim2d.sonar import SonarSpec, sonar_readings
+
+SPEC = load_robot("atrv_mini")
+MOUNTS = np.asarray(SPEC.sonar_mounts)
+
+# A 12 m x 3 m corridor closed at both ends (wall capsules x1, y1, x2, y2, radius).
+CORRIDOR = np.array([
+    [0.0, 0.0, 12.0, 0.0, 0.05],
+    [0.0, 3.0, 12.0, 3.0, 0.05],
+    [0.0, 0.0, 0.0, 3.0, 0.05],
+    [12.0, 0.0, 12.0, 3.0, 0.05],
+])
+WALL_SURFACES = {"south": 0.05, "north": 2.95}
+
+
+def corridor_run(specular: bool, y: float = 0.8, steps: int = 200, seed: int = 0):
+    """Drive east along the corridor 0.75 m from the south wall; poses and sonar readings."""
+    rng = np.random.default_rng(seed)
+    spec = SonarSpec(specular=specular, noise_std=0.01)
+    poses = np.array([[1.0 + 0.045 * k, y, 0.0] for k in range(steps)])
+    ranges, echo = [], []
+    for pose in poses:
+        r, e = sonar_readings(sensor_poses_along(pose[None], MOUNTS)[0], CORRIDOR, spec, rng)
+        ranges.append(r)
+        echo.append(e)
+    return poses, np.array(ranges), np.array(echo)
+
+
+def test_collinear_echoes_become_one_feature_on_the_wall():
+    poses, ranges, echo = corridor_run(specular=True)
+    sensors = sensor_poses_along(poses, MOUNTS)
+    features = merge_features(extract_linear_features(sensors, ranges, echo))
+    long = [f for f in features if f.length > 3.0]
+    assert long, [f.length for f in features]
+    for f in long:
+        # horizontal walls, normal pointing back at the robot, on a true wall surface
+        assert abs(f.normal[0]) < 0.05
+        y_wall = float((f.p0[1] + f.p1[1]) / 2)
+        assert min(abs(y_wall - w) for w in WALL_SURFACES.values()) < 0.03, y_wall
+        assert np.sign(f.normal[1]) == np.sign(0.8 - y_wall)
+        assert f.residual < 0.03
+
+
+def test_oblique_echoes_are_placed_on_the_wall_not_on_the_beam_axis():
+    """A sensor 45 degrees off the wall hears its cone edge; its echoes must land on the wall."""
+    diagonal = [j for j, m in enumerate(MOUNTS) if 30 < abs(math.degrees(m[2])) < 60]
+    poses, ranges, echo = corridor_run(specular=False)
+    sensors = sensor_poses_along(poses, MOUNTS)[:, diagonal]
+    features = extract_linear_features(sensors, ranges[:, diagonal], echo[:, diagonal])
+    assert features
+    for f in features:
+        y_wall = float(np.mean(f.points[:, 1]))
+        assert min(abs(y_wall - w) for w in WALL_SURFACES.values()) < 0.04, y_wall
+
+
+def test_prediction_is_the_cone_range_to_the_nearest_feature():
+    poses, ranges, echo = corridor_run(specular=False)
+    features = merge_features(extract_linear_features(sensor_poses_along(poses, MOUNTS),
+                                                      ranges, echo))
+    sensors = np.array([[5.0, 1.5, math.pi / 2], [5.0, 1.5, -math.pi / 2], [5.0, 1.5, 0.0]])
+    predicted = predict_ranges(sensors, features, 30.0, 4.0)
+    assert predicted[0] == pytest.approx(1.45, abs=0.04)
+    assert predicted[1] == pytest.approx(1.45, abs=0.04)
+    assert predicted[2] == np.inf or predicted[2] > 3.5  # nothing ahead within range
+    assert np.all(predict_ranges(sensors, [], 30.0, 4.0) == np.inf)
+
+
+def test_readings_are_classified_by_the_prediction():
+    ranges = np.array([1.0, 0.5, 2.0, 4.0, 4.0, 0.8])
+    echo = np.array([True, True, True, False, False, True])
+    predicted = np.array([1.05, 1.0, 1.0, 1.5, np.inf, np.inf])
+    cls = classify_readings(ranges, echo, predicted, 4.0, 0.1)
+    assert [READING_CLASSES[c] for c in cls] == [
+        "confirmed", "unexplained", "contradicted", "specular", "open", "unexplained"]
+
+
+def _false_free_on_walls(m) -> float:
+    """Share of true wall-surface cells along the driven stretch that the map marks free."""
+    xs = np.arange(2.0, 9.0, 0.025)
+    _, free, _ = m.classes()
+    hits = total = 0
+    for y in (0.0, 3.0):
+        ix = np.floor((xs - m.origin[0]) / m.resolution).astype(int)
+        iy = int(math.floor((y - m.origin[1]) / m.resolution))
+        hits += int(free[iy, ix].sum())
+        total += len(xs)
+    return hits / total
+
+
+def test_feature_prediction_stops_specular_losses_clearing_through_walls():
+    poses, ranges, echo = corridor_run(specular=True)
+    assert (~echo).mean() > 0.15  # the scenario really loses many echoes
+    offline = build_offline_map(poses, ranges, MOUNTS, echo=echo,
+                                params=OfflineMapParams(correct_drift=False)).map
+    # the plain log-odds map of the same readings clears through the walls
+    logodds = LogOddsMap(InverseSonarModel(), resolution=0.05)
+    for pose, r in zip(poses, ranges):
+        logodds.add_scan(sensor_poses_along(pose[None], MOUNTS)[0], r)
+    from blocks.maps.mapio import OccupancyMap
+    p, (ix, iy) = logodds.probabilities()
+    plain = OccupancyMap(p, 0.05, (ix * 0.05, iy * 0.05, 0.0))
+    assert _false_free_on_walls(plain) > 0.3
+    assert _false_free_on_walls(offline) < 0.05
+
+
+def test_offline_map_marks_walls_and_leaves_the_unexplored_unknown():
+    poses, ranges, echo = corridor_run(specular=True)
+    result = build_offline_map(poses, ranges, MOUNTS, echo=echo,
+                               params=OfflineMapParams(correct_drift=False))
+    m = result.map
+    occupied, free, unknown = m.classes()
+    xs, ys = m.cell_centres()
+    # every occupied cell is near a true wall surface (no walls at maximum range)
+    iy, ix = np.nonzero(occupied)
+    near = np.zeros(len(iy), dtype=bool)
+    for x1, y1, x2, y2, _ in CORRIDOR:
+        px, py = xs[ix], ys[iy]
+        dx, dy = x2 - x1, y2 - y1
+        t = np.clip(((px - x1) * dx + (py - y1) * dy) / (dx * dx + dy * dy), 0, 1)
+        near |= np.hypot(px - x1 - t * dx, py - y1 - t * dy) < 0.25
+    assert occupied.sum() > 200 and near.mean() > 0.93  # echo arcs curve off oblique walls
+    # both long walls are found along the driven stretch
+    for y in (0.0, 3.0):
+        row = int(math.floor((y - m.origin[1]) / m.resolution))
+        band = occupied[row - 4:row + 5, (xs > 2) & (xs < 9)].any(axis=0)
+        assert band.mean() > 0.9, y
+    # outside the corridor nothing was seen: unknown, not walls (the map is unbounded)
+    outside = ys < -0.5
+    assert unknown[outside].all()
+    assert result.class_counts()["specular"] > 0
+    assert sum(result.class_counts().values()) == ranges.size
+
+
+def test_drift_correction_pulls_a_drifting_odometry_back_onto_the_walls():
+    poses, ranges, echo = corridor_run(specular=False, steps=200)
+    # odometry with a slow heading drift: 0.02 degrees per step, about 2 degrees at the end
+    drift = np.radians(0.02) * np.arange(len(poses))
+    odom = poses.copy()
+    step = np.diff(poses[:, 0], prepend=poses[0, 0])
+    odom[:, 0] = poses[0, 0] + np.cumsum(step * np.cos(drift))
+    odom[:, 1] = poses[0, 1] + np.cumsum(step * np.sin(drift))
+    odom[:, 2] = drift
+    corrected = correct_odometry(odom, ranges, echo, MOUNTS)
+    before = np.abs(odom[:, 1] - poses[:, 1])
+    after = np.abs(corrected[:, 1] - poses[:, 1])
+    assert before[-1] > 0.2
+    assert after[-1] < 0.5 * before[-1]
+    assert after.mean() < 0.5 * before.mean()
+
+
+def test_parameters_are_checked():
+    with pytest.raises(ValueError):
+        OfflineMapParams(l_free=0.2)
+    with pytest.raises(ValueError):
+        OfflineMapParams(confirmed=1.5)
+    with pytest.raises(ValueError):
+        build_offline_map(np.zeros((3, 3)), np.zeros((2, 16)), MOUNTS)
+
+
+def test_sonar_visibility_stops_at_the_first_wall_and_stays_in_the_cone():
+    from blocks.maps.mapio import occupancy_map_from_world
+    from blocks.maps.visibility import sonar_visible
+    from sim2d.world import load_world
+    from sim2d.worlds import world_path
+
+    world = load_world(world_path("corridor"))  # 20 m long, walls at y = 0.1 and 2.1
+    truth = occupancy_map_from_world(world)
+    xs, ys = truth.cell_centres()
+    seen = sonar_visible(world, np.array([[5.0, 1.1, math.pi / 2]]))  # facing the north wall
+    assert seen.shape == truth.occupancy.shape
+    rows, cols = np.nonzero(seen)
+    assert ys[rows].max() < 2.25  # up to the wall surface, never behind it
+    assert np.abs(xs[cols] - 5.0).max() < 1.0 * math.tan(math.radians(15)) + 0.1  # the cone
+    wall_row = int(np.argmin(np.abs(ys - 2.1)))
+    assert seen[wall_row - 1:wall_row + 2, np.abs(xs - 5.0) < 0.1].any()  # the echoing surface
+    along = sonar_visible(world, np.array([[1.0, 1.1, 0.0]]))  # looking down the corridor
+    assert np.abs(xs[np.nonzero(along)[1]] - 1.0).max() <= 4.1  # sonar range
+    assert not along[:, xs < 0.9].any()
