@@ -106,15 +106,7 @@ def _feature_from(points: np.ndarray, sensors: np.ndarray, ranges: np.ndarray,
     if np.dot(sensors[:, :2].mean(axis=0) - centre, normal) < 0:
         normal = -normal
     wall = _reflection_points(sensors, ranges, normal, half_cone)
-    centre, direction = _fit_line(wall)
-    normal = np.array([-direction[1], direction[0]])
-    if np.dot(sensors[:, :2].mean(axis=0) - centre, normal) < 0:
-        normal = -normal
-    along = (wall - centre) @ direction
-    across = (wall - centre) @ normal
-    return LinearFeature(p0=centre + along.min() * direction, p1=centre + along.max() * direction,
-                         normal=normal, points=wall,
-                         residual=float(np.sqrt(np.mean(across ** 2))))
+    return _refit(wall, sensors[:, :2].mean(axis=0) - wall.mean(axis=0))
 
 
 def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
