@@ -12,7 +12,7 @@ from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["cone_tables"]
+__all__ = ["cone_tables", "cone_window"]
 
 
 @lru_cache(maxsize=4)
@@ -53,3 +53,21 @@ def cone_tables(resolution: float, cone_deg: float, reach: int
         codes = np.where(inside, codes_all, outside)[r0:r1, c0:c1].copy()
         tables.append((int(r0) - reach, int(c0) - reach, codes))
     return tuple(tables)
+
+
+def cone_window(table: tuple[int, int, np.ndarray], row: int, col: int, radius: int
+                ) -> tuple[slice, slice, np.ndarray] | None:
+    """A cone cropped to ``radius`` cells around its apex at grid cell (``row``, ``col``).
+
+    Returns the grid's row and column slices and the matching part of the
+    codes, or None when nothing is left.  A short reading thereby touches
+    only the cells it can reach.
+    """
+    dr, dc, codes = table
+    h, w = codes.shape
+    r0, r1 = max(0, -radius - dr), min(h, radius + 1 - dr)
+    c0, c1 = max(0, -radius - dc), min(w, radius + 1 - dc)
+    if r0 >= r1 or c0 >= c1:
+        return None
+    return (slice(row + dr + r0, row + dr + r1), slice(col + dc + c0, col + dc + c1),
+            codes[r0:r1, c0:c1])

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .features import (LinearFeature, _mergeable, _refit, extract_linear_features,
-                       sensor_poses_along)
+from .features import (LinearFeature, _mergeable, _refit, extract_linear_features, gap_along,
+                       moved, sensor_poses_along)
 
 __all__ = ["DriftCorrection", "correct_odometry"]
 
@@ -75,15 +75,8 @@ def _matches(f: LinearFeature, g: LinearFeature, p: DriftCorrection) -> float | 
     if g.length < p.min_length or np.dot(f.normal, g.normal) < math.cos(
             math.radians(p.max_angle_deg)):
         return None
-    direction = np.array([g.normal[1], -g.normal[0]])
-    centre = g.p0
-    offset = abs(float(np.dot((f.p0 + f.p1) / 2 - centre, g.normal)))
-    if offset > p.max_offset:
-        return None
-    g0, g1 = sorted((0.0, float(np.dot(g.p1 - centre, direction))))
-    f0, f1 = sorted((float(np.dot(f.p0 - centre, direction)),
-                     float(np.dot(f.p1 - centre, direction))))
-    if max(g0, f0) - min(g1, f1) > p.max_gap:
+    offset = abs(float(np.dot((f.p0 + f.p1) / 2 - g.p0, g.normal)))
+    if offset > p.max_offset or gap_along(g, f) > p.max_gap:
         return None
     return offset
 
@@ -156,7 +149,8 @@ def correct_odometry(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
                 dtheta_total += dth
                 out[part, :2] = poses[part, :2] @ rot.T + shift
                 out[part, 2] = poses[part, 2] + dtheta_total
-                local = _local_features(out[part], ranges[part], echo[part], mounts, cone_deg)
+                # the chunk moved rigidly, and so did its features
+                local = [moved(f, r_delta, pivot, np.array([dx, dy])) for f in local]
         for f in local:
             for i, g in enumerate(mapped):
                 if _mergeable(g, f, math.radians(p.max_angle_deg), 0.1, 0.3):

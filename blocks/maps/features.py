@@ -189,16 +189,30 @@ def _explains(feature: LinearFeature, sensors: np.ndarray, ranges: np.ndarray,
     return float(np.mean(np.abs(predicted - ranges) <= tol)) >= share
 
 
+def gap_along(a: LinearFeature, b: LinearFeature) -> float:
+    """Gap (m) between the two features' extents along ``a``'s line; negative if they overlap."""
+    direction = np.array([a.normal[1], -a.normal[0]])
+    a0, a1 = sorted((0.0, float(np.dot(a.p1 - a.p0, direction))))
+    b0, b1 = sorted((float(np.dot(b.p0 - a.p0, direction)), float(np.dot(b.p1 - a.p0, direction))))
+    return max(a0, b0) - min(a1, b1)
+
+
 def _mergeable(a: LinearFeature, b: LinearFeature, angle_tol: float, offset_tol: float,
                max_gap: float) -> bool:
     if np.dot(a.normal, b.normal) < math.cos(angle_tol):
         return False  # different directions, or the two faces of a thin wall
-    direction = np.array([a.normal[1], -a.normal[0]])
     if max(abs(np.dot(b.p0 - a.p0, a.normal)), abs(np.dot(b.p1 - a.p0, a.normal))) > offset_tol:
         return False
-    a0, a1 = sorted((0.0, float(np.dot(a.p1 - a.p0, direction))))
-    b0, b1 = sorted((float(np.dot(b.p0 - a.p0, direction)), float(np.dot(b.p1 - a.p0, direction))))
-    return max(a0, b0) - min(a1, b1) <= max_gap
+    return gap_along(a, b) <= max_gap
+
+
+def moved(f: LinearFeature, rotation: np.ndarray, pivot: np.ndarray,
+          shift: np.ndarray) -> LinearFeature:
+    """The feature after the rigid motion x -> pivot + rotation (x - pivot) + shift."""
+    def move(x: np.ndarray) -> np.ndarray:
+        return (x - pivot) @ rotation.T + pivot + shift
+    return LinearFeature(p0=move(f.p0), p1=move(f.p1), normal=rotation @ f.normal,
+                         points=move(f.points), residual=f.residual)
 
 
 def _refit(points: np.ndarray, normal_hint: np.ndarray) -> LinearFeature:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cones import cone_tables
+from .cones import cone_tables, cone_window
 from .drift import DriftCorrection, correct_odometry
 from .features import (LinearFeature, extract_linear_features, merge_features, predict_ranges,
                        sensor_poses_along)
@@ -147,17 +147,10 @@ def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
         far = max(free_code[i], hi_code[i])
         if far <= 0:
             continue
-        dr, dc, codes = tables[degrees[i]]
-        radius = far // 2 + 1  # cells
-        h, w = codes.shape
-        # crop the cone to the box of the reading's reach around the apex
-        r0, r1 = max(0, -radius - dr), min(h, radius + 1 - dr)
-        c0, c1 = max(0, -radius - dc), min(w, radius + 1 - dc)
-        if r0 >= r1 or c0 >= c1:
+        window = cone_window(tables[degrees[i]], iy[i], ix[i], far // 2 + 1)
+        if window is None:
             continue
-        sub = codes[r0:r1, c0:c1]
-        rows = slice(iy[i] + dr + r0, iy[i] + dr + r1)
-        cols = slice(ix[i] + dc + c0, ix[i] + dc + c1)
+        rows, cols, sub = window
         delta = np.where(sub < free_code[i], np.float32(p.l_free * w_free[i]), np.float32(0))
         if hit[i]:
             delta[(sub >= lo_code[i]) & (sub <= hi_code[i])] = p.l_occ * w_occ[i]

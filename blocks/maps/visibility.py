@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .cones import cone_tables
+from .cones import cone_tables, cone_window
 from .mapio import occupancy_map_from_world
 
 if TYPE_CHECKING:
@@ -66,14 +66,9 @@ def sonar_visible(world: World, sensors: np.ndarray, cone_deg: float = 30.0,
     limit = np.floor(2 * (ranges / res + 1.0)).astype(int)  # one cell beyond: the surface
     inside = (ix >= 0) & (iy >= 0) & (ix < seen.shape[1]) & (iy < seen.shape[0])
     for i in np.flatnonzero(inside):
-        dr, dc, codes = tables[degrees[i]]
-        radius = limit[i] // 2 + 1
-        h, w = codes.shape
-        r0, r1 = max(0, -radius - dr), min(h, radius + 1 - dr)
-        c0, c1 = max(0, -radius - dc), min(w, radius + 1 - dc)
-        rows = slice(iy[i] + dr + r0, iy[i] + dr + r1)
-        cols = slice(ix[i] + dc + c0, ix[i] + dc + c1)
-        if rows.start < 0 or cols.start < 0:
+        window = cone_window(tables[degrees[i]], iy[i], ix[i], limit[i] // 2 + 1)
+        if window is None or window[0].start < 0 or window[1].start < 0:
             continue  # a sensor outside the floor plan: nothing of the grid to see
-        seen[rows, cols] |= codes[r0:r1, c0:c1] <= limit[i]
+        rows, cols, codes = window
+        seen[rows, cols] |= codes <= limit[i]
     return seen[pad:pad + shape[0], pad:pad + shape[1]]
