@@ -300,6 +300,9 @@ class OfflineMapBlock(_MapWriter):
 
     map_name = "offline"
     inputs = {"ranges": RANGES, "pose": POSE, "truth": TRUTH}
+    outputs = {"map": Port(kind="handle", doc="this map: snapshot() gives the OccupancyMap at "
+                                              "the end of the run, corrected_pose(tick) the "
+                                              "drift-corrected pose of a tick")}
     params = {
         "robot": ROBOT, "world": WORLD,
         "resolution": Param(float, 0.025, "offline map cell size", unit="m", min=0.005,
@@ -314,31 +317,69 @@ class OfflineMapBlock(_MapWriter):
         super().reset()
         self._scans: list[np.ndarray] = []
         self._poses: list[np.ndarray] = []
+        self._ticks: list[int] = []
         self._result: Any = None
 
-    def step(self, ranges: np.ndarray, pose: np.ndarray, truth: np.ndarray | None = None) -> None:
+    def step(self, ranges: np.ndarray, pose: np.ndarray,
+             truth: np.ndarray | None = None) -> dict[str, Any]:
         self._scans.append(np.array(ranges, dtype=np.float64))
         self._poses.append(np.array(pose[:3], dtype=np.float64))
+        self._ticks.append(self.ctx.tick)
         self.record_truth(truth)
+        return {"map": self}
+
+    def _build(self) -> Any:
+        """The offline map, built once at the end of the run (None before any scan)."""
+        from .offline import OfflineMapParams, build_offline_map
+        if self._result is None and self._scans:
+            spec = _robot(self.p.robot)
+            params = OfflineMapParams(resolution=self.p.resolution, agree_tol=self.p.agree_tol,
+                                      min_support=self.p.min_support,
+                                      correct_drift=self.p.correct_drift)
+            self._result = build_offline_map(np.array(self._poses), np.array(self._scans),
+                                             spec.sonar_mounts, cone_deg=spec.sonar.cone_deg,
+                                             max_range=spec.sonar.max_range, params=params)
+        return self._result
 
     def occupancy_map(self) -> OccupancyMap | None:
-        from .offline import OfflineMapParams, build_offline_map
-        if not self._scans:
+        result = self._build()
+        if result is None:
             return None
-        spec = _robot(self.p.robot)
-        params = OfflineMapParams(resolution=self.p.resolution, agree_tol=self.p.agree_tol,
-                                  min_support=self.p.min_support,
-                                  correct_drift=self.p.correct_drift)
-        self._result = build_offline_map(np.array(self._poses), np.array(self._scans),
-                                         spec.sonar_mounts, cone_deg=spec.sonar.cone_deg,
-                                         max_range=spec.sonar.max_range, params=params)
-        self.report("features", len(self._result.features))
-        self.report("readings", self._result.class_counts())
-        return self._result.map
+        self.report("features", len(result.features))
+        self.report("readings", result.class_counts())
+        return result.map
+
+    def snapshot(self) -> OccupancyMap | None:
+        """The finished offline map (built on first use)."""
+        result = self._build()
+        return None if result is None else result.map
+
+    def corrected_path(self) -> np.ndarray | None:
+        """(T, 3) drift-corrected poses, one per recorded tick."""
+        result = self._build()
+        return None if result is None else np.asarray(result.poses)
+
+    def corrected_pose(self, tick: int, pose: np.ndarray) -> np.ndarray:
+        """Where the drift correction puts the robot that odometry had at ``pose`` on ``tick``.
+
+        The correction is rigid per chunk, so the odometry pose of ``tick`` is
+        mapped by the same rotation and shift as the recorded one.
+        """
+        result = self._build()
+        pose = np.asarray(pose, dtype=np.float64)[:3]
+        if result is None or not self._ticks:
+            return pose.copy()
+        i = int(np.clip(np.searchsorted(self._ticks, tick), 0, len(self._ticks) - 1))
+        before, after = self._poses[i], np.asarray(result.poses[i], dtype=np.float64)
+        dth = after[2] - before[2]
+        c, s = math.cos(dth), math.sin(dth)
+        rel = pose[:2] - before[:2]
+        return np.array([after[0] + c * rel[0] - s * rel[1], after[1] + s * rel[0] + c * rel[1],
+                         pose[2] + dth])
 
     def write_extras(self, folder: Any) -> list[Any]:
         from .processing import write_walls_geojson
-        features = self._result.features
+        features = self._build().features
         return [write_walls_geojson(
             folder / "offline_walls.geojson", [np.array([f.p0, f.p1]) for f in features],
             feature_properties=[{"support": f.support, "residual_m": round(f.residual, 4)}
