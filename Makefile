@@ -23,14 +23,17 @@ venv: $(VENV)/.installed
 venv-dev: $(VENV)/.installed-dev
 
 # The main job on the default world (office): exploration by fuzzy perimeter
-# following until the robot is back at its start.
+# following until the robot is back at its start, the online and offline maps,
+# and the door signs read on the way and placed on the map (the hybrid map).
 demo: venv
-	$(BIN)/semmap run graphs/perimeter_following.yaml --out $(OUT) --record follower.FrontCP --record follower.RightCP
+	$(BIN)/semmap run graphs/semantic_mapping.yaml --out $(OUT) --record follower.FrontCP --record follower.RightCP
 	$(BIN)/semmap render $(OUT) --gif
-	$(BIN)/semmap graph graphs/perimeter_following.yaml --format png -o $(OUT)/graph.png
-	@echo "Outputs are in $(OUT)/: path.png and run.gif (the exploration), velocity_plot.png"
-	@echo "(v and w over time), graph.png (the pipeline), trajectory.csv, sonar.npz, probes.npz"
-	@echo "and run.json (collisions, distance, loop closure, wall-distance error)."
+	$(BIN)/semmap graph graphs/semantic_mapping.yaml --format png -o $(OUT)/graph.png
+	@echo "Outputs are in $(OUT)/: signs.json (the signs read, placed on the map) and"
+	@echo "maps/hybrid.png (them drawn on the offline map), maps/ (online and offline maps,"
+	@echo "map_server YAML + PGM + PNG), signs/captures/ (the zoomed captures), path.png and"
+	@echo "run.gif (the exploration), velocity_plot.png, graph.png (the pipeline),"
+	@echo "trajectory.csv, sonar.npz, probes.npz and run.json (scores, stops, timings)."
 
 test: venv-dev
 	$(BIN)/python -m pytest -q -n 2

@@ -21,3 +21,6 @@ def test_benchmarks_quick_run(tmp_path):
     assert [c["robots"] for c in fuzzy["compiled"]] == [1, 100, 1000]
     maps = json.loads((tmp_path / "maps.json").read_text())
     assert maps["paper_updates_per_s"] > 0 and maps["logodds_updates_per_s"] > 0
+    detector = json.loads((tmp_path / "sign_detector.json").read_text())
+    reader = json.loads((tmp_path / "sign_reader.json").read_text())
+    assert detector and reader

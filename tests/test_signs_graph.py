@@ -1,0 +1,57 @@
+"""graphs/semantic_mapping.yaml end to end on the office: signs found, read, placed, drawn."""
+from __future__ import annotations
+
+import json
+
+import cv2
+import pytest
+
+from conftest import ROOT
+
+GRAPH = ROOT / "graphs/semantic_mapping.yaml"
+
+
+@pytest.fixture(scope="module")
+def office_run(tmp_path_factory):
+    from blocks.cli import main
+    out = tmp_path_factory.mktemp("semantic") / "office"
+    code = main(["run", str(GRAPH), "--world", "office", "--out", str(out), "-q"])
+    assert code == 0
+    return out, json.loads((out / "run.json").read_text())["metrics"]
+
+
+def test_the_signs_along_the_path_are_read_and_placed_without_false_signs(office_run):
+    out, metrics = office_run
+    signs = metrics["signs"]
+    assert signs["signs_along_path"] >= 12  # the loop passes (nearly) every office sign
+    assert signs["read_exactly_along_path"] >= 0.9 * signs["signs_along_path"]
+    assert signs["false_signs"] == 0
+    assert signs["position_error_max"] < 0.8  # odometry drift dominates this
+    assert signs["position_error_max_true_pose"] < 0.3  # the correlation's own error
+    assert metrics["detector"]["false_positives"] == 0
+    seek = metrics["seek"]
+    assert seek["captures"] == seek["stops"] - seek["rejected_not_sign"] - seek["timeouts"]
+    assert metrics["reader"]["captures_read"] == seek["captures"]
+
+
+def test_the_stops_add_little_to_the_exploration(office_run):
+    _, metrics = office_run
+    loop = metrics["follower.loop"]
+    assert loop["loop_closed"]
+    # the stops themselves take no more than a tenth of the exploration
+    assert metrics["seek"]["stopped_time_s"] <= 0.1 * loop["loop_time_s"]
+
+
+def test_signs_json_and_the_hybrid_map_are_written(office_run):
+    out, _ = office_run
+    signs = json.loads((out / "signs.json").read_text())
+    assert isinstance(signs, list) and signs
+    for s in signs:
+        assert set(s) >= {"text", "raw_text", "confidence", "x", "y", "facing", "sightings"}
+        assert 0.5 <= s["confidence"] <= 1.0 and s["sightings"] >= 1
+    assert len({s["text"] for s in signs}) == len(signs)  # repeated sightings merged
+    image = cv2.imread(str(out / "maps/hybrid.png"))
+    assert image is not None and image.shape[0] > 200 and image.std() > 10
+    assert (out / "maps/offline.yaml").exists()
+    assert list((out / "signs/captures").glob("*.png"))
+    assert (out / "signs/seek_log.csv").read_text().startswith("time,event")
