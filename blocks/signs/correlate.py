@@ -27,6 +27,7 @@ import io
 import json
 import math
 import re
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -516,7 +517,10 @@ def draw_hybrid_map(occupancy_map, signs: Sequence[Mapping[str, Any]], path: str
         ax.set_title(title if title is not None else f"hybrid map: {len(est)} signs")
         if est or truth or traj is not None:
             ax.legend(loc="upper right", fontsize=7)
-        fig.tight_layout()
+        with warnings.catch_warnings():
+            # a very small map (a short run) leaves no room to tighten: keep the layout
+            warnings.filterwarnings("ignore", message="Tight layout not applied")
+            fig.tight_layout()
         buf = io.BytesIO()
         fig.savefig(buf, format="png")
     finally:
