@@ -429,20 +429,28 @@ class SignSeeker:
         self._cmd = self._aim(self.target, pose, pan, self._cmd[1], 1.0, None, None)
         return SeekCommand(False, *self._cmd, target=self.target, event=event)
 
+    def _follow(self, t: Target, fresh: bool, placed: list
+                ) -> tuple[PlateDetection | None, bool]:
+        """The target's detection in a fresh frame (folded into its estimate), and whether
+        it has now been missing for ``lost_frames`` frames."""
+        if not fresh:
+            return None, False
+        hit = self._nearest(placed, t)
+        if hit is None:
+            t.missed += 1
+            return None, t.missed >= self.p.lost_frames
+        det, obs = hit
+        t.missed = 0
+        t.absorb(obs)
+        return det, False
+
     def _step_track(self, time, pose, fresh, placed, camera, pan, tilt, zoom) -> SeekCommand:
         t = self.target
         assert t is not None
-        det = None
-        if fresh:
-            hit = self._nearest(placed, t)
-            if hit is None:
-                t.missed += 1
-                if t.missed >= self.p.lost_frames:
-                    self.stats.lost += 1
-                    return self._resume(time, "target lost while tracking", remember=False)
-            else:
-                det, obs = hit
-                t.absorb(obs)
+        det, gone = self._follow(t, fresh, placed)
+        if gone:
+            self.stats.lost += 1
+            return self._resume(time, "target lost while tracking", remember=False)
         if time - t.since > self.p.track_timeout:
             self.stats.timeouts += 1
             return self._resume(time, "tracking timed out", remember=True)
@@ -484,18 +492,10 @@ class SignSeeker:
         if time - self._stop_since > self.p.stop_timeout:
             self.stats.timeouts += 1
             return self._resume(time, "stop timed out", remember=True)
-        det = None
-        if fresh:
-            hit = self._nearest(placed, t)
-            if hit is None:
-                t.missed += 1
-                if t.missed >= self.p.lost_frames:
-                    self.stats.rejected += 1
-                    return self._resume(time, "zoomed view shows no plate: not a sign",
-                                        remember=True)
-            else:
-                det, obs = hit
-                t.absorb(obs)
+        det, gone = self._follow(t, fresh, placed)
+        if gone:
+            self.stats.rejected += 1
+            return self._resume(time, "zoomed view shows no plate: not a sign", remember=True)
         if det is None:
             return SeekCommand(True, *self._cmd, target=t)
         assert camera is not None
