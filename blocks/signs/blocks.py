@@ -11,7 +11,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -205,7 +204,7 @@ class Reader(Block):
     ordinary frames.  The plate is rectified from its detected corners, read
     with RapidOCR (models from its wheel; nothing is downloaded), normalised
     (case, spacing, O/0-style confusions) and matched to the vocabulary.
-    Saves each rectified capture to ``DIR/signs/captures/``.
+    Saves each captured frame to ``DIR/signs/captures/``, named by tick and reading.
     """
 
     inputs = {"capture": Port.message(doc="Capture from the seek block")}
@@ -323,9 +322,12 @@ class Correlate(Block):
             self._score(signs)
 
     def _world(self):
-        from sim2d.blocks import resolve_world
-        from sim2d.world import load_world
-        return load_world(resolve_world(self.p.world))
+        """The world being scored against, loaded once (drawing and scoring both use it)."""
+        if getattr(self, "_loaded_world", None) is None:
+            from sim2d.blocks import resolve_world
+            from sim2d.world import load_world
+            self._loaded_world = load_world(resolve_world(self.p.world))
+        return self._loaded_world
 
     def _draw(self, signs: list[dict]) -> None:
         from .correlate import draw_hybrid_map

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from .geometry import camera_pose_of, estimate_plate
+from .geometry import camera_pose_of, estimate_plate, wrap
 from .types import CameraModel, PlateDetection
 
 __all__ = ["Mode", "SeekParams", "SeekCommand", "SignSeeker", "Target"]
@@ -220,10 +220,6 @@ class _Stats:
     events: list[tuple[float, str]] = field(default_factory=list)
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
 class SignSeeker:
     """The stop-and-zoom state machine (see the module docstring).
 
@@ -290,7 +286,7 @@ class SignSeeker:
         sig_xy = est.sigma_xy if math.isfinite(est.sigma_xy) else 0.1 * est.range
         sig_f = est.sigma_facing if math.isfinite(est.sigma_facing) else math.radians(30)
         return Observation(camx + c * est.x - s * est.y, camy + s * est.x + c * est.y,
-                           _wrap(camyaw + est.facing), z,
+                           wrap(camyaw + est.facing), z,
                            w_pos=1.0 / (sig_xy ** 2 + 0.02 ** 2),
                            w_facing=1.0 / (sig_f ** 2 + math.radians(2.0) ** 2))
 
@@ -302,11 +298,9 @@ class SignSeeker:
         camx, camy, _ = camera_pose_of(pose, self.mount[0], self.mount[1], pan)
         dx, dy = camx - target.x, camy - target.y
         dist = math.hypot(dx, dy)
-        view = abs(_wrap(math.atan2(dy, dx) - target.facing)) if dist > 1e-9 else 0.0
-        # the pan that points the camera at the target (from the pan axis)
-        ax = pose[0] + math.cos(pose[2]) * self.mount[0] - math.sin(pose[2]) * self.mount[1]
-        ay = pose[1] + math.sin(pose[2]) * self.mount[0] + math.cos(pose[2]) * self.mount[1]
-        bearing = _wrap(math.atan2(target.y - ay, target.x - ax) - pose[2])
+        view = abs(wrap(math.atan2(dy, dx) - target.facing)) if dist > 1e-9 else 0.0
+        # the optical centre sits on the pan axis, so this is also the pan that aims at it
+        bearing = wrap(math.atan2(-dy, -dx) - pose[2])
         return view, dist, bearing
 
     @staticmethod
@@ -440,8 +434,7 @@ class SignSeeker:
             t.missed += 1
             return None, t.missed >= self.p.lost_frames
         det, obs = hit
-        t.missed = 0
-        t.absorb(obs)
+        t.absorb(obs)  # resets the miss count
         return det, False
 
     def _step_track(self, time, pose, fresh, placed, camera, pan, tilt, zoom) -> SeekCommand:
@@ -501,7 +494,7 @@ class SignSeeker:
         assert camera is not None
         new_pan, new_tilt, _ = self._aim(t, pose, pan, tilt, zoom, det, camera)
         new_zoom = self._zoom_for(det, zoom, camera)
-        settled = (abs(_wrap(self._cmd[0] - pan)) <= math.radians(self.p.settle_deg)
+        settled = (abs(wrap(self._cmd[0] - pan)) <= math.radians(self.p.settle_deg)
                    and abs(self._cmd[1] - tilt) <= math.radians(self.p.settle_deg)
                    and abs(self._cmd[2] - zoom) <= self.p.settle_zoom)
         u, v = det.centre
