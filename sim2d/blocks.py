@@ -293,6 +293,8 @@ class Camera(_RobotBlock):
         "fresh": Port.event(doc="true on ticks with a new frame"),
         "visible": Port.message(doc="ground truth: plates in view (text, bearing, distance, "
                                     "viewing angle, bbox)"),
+        "objects_visible": Port.message(doc="ground truth: world objects in view (label, "
+                                            "bearing, distance, bbox)"),
     }
     params = {"robot": ROBOT,
               "rate_hz": Param(float, 0.0, "frames per second; 0 uses the robot's camera rate",
@@ -315,7 +317,7 @@ class Camera(_RobotBlock):
 
     def step(self, sim: Simulation, pan: float = 0.0, tilt: float = 0.0,
              zoom: float = 1.0) -> dict[str, Any]:
-        from .camera import camera_pose, render, visible_signs
+        from .camera import camera_pose, render, visible_objects, visible_signs
         robot = self._robot(sim)
         if self._spec is None:
             self._spec, self._dyn = camera_spec_of(robot.spec)
@@ -327,8 +329,9 @@ class Camera(_RobotBlock):
         cam = camera_pose(robot.pose, self._spec, self._head[0])
         image = render(sim.world, cam, self._head[1], self._head[2], self._spec, self.rng)
         seen = visible_signs(sim.world, cam, self._head[1], self._head[2], self._spec)
+        objects = visible_objects(sim.world, cam, self._head[1], self._head[2], self._spec)
         return {**head, "image": image, "pose": np.asarray(cam, dtype=np.float64),
-                "fresh": True, "visible": seen}
+                "fresh": True, "visible": seen, "objects_visible": objects}
 
 
 def right_wall_distance(segments: np.ndarray, pose: np.ndarray, reach: float = 4.0) -> float:

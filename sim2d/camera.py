@@ -5,7 +5,9 @@ on a flat floor under a flat ceiling. Each image column casts one ray through
 all wall capsules at once (numpy, columns x segments); the nearest hit gives
 the column's wall depth and shading. Sign plates are textured quads, projected
 with the true pinhole model, occluded per column by the walls in front of
-them, and warped into the image. The image is then degraded with a
+them, and warped into the image; so are the world's objects (upright
+billboards of their object-catalogue pictures, facing the camera, visual only:
+see the objects section below). The image is then degraded with a
 range-dependent Gaussian blur and seeded Gaussian noise.
 
 Frames and conventions
@@ -51,10 +53,12 @@ __all__ = [
     "cast_rays",
     "clamp_ptz",
     "focal_length",
+    "object_corners",
     "plate_corners",
     "project_points",
     "render",
     "sign_plate_image",
+    "visible_objects",
     "visible_signs",
 ]
 
@@ -617,6 +621,191 @@ def visible_signs(world: World, cam_pose, tilt: float, zoom: float,
     return out
 
 
+# ---- objects ----------------------------------------------------------------------------------
+# World objects (``world.objects``: label, x, y) are drawn as upright billboards:
+# the catalogue picture of their label (semantic/objects), at the catalogue's
+# physical width x height, standing ``elevation`` above the floor (0: on it),
+# centred on (x, y) and turned to face the camera (a sprite: the picture is
+# perpendicular to the line of sight from the camera to the object). An object
+# with a ``facing`` attribute that is not None (rad, like Sign.facing) faces
+# that fixed direction instead and is not drawn from behind. Objects are
+# visual only: they have no walls, so the sonar and the robot's physics do not
+# see them; walls in front of them hide them column by column, as for plates.
+OBJECT_TOLERANCE = 0.02  # m (along the ray): a wall this close in front of a billboard still lets it show
+
+
+@dataclass
+class _ObjectView:
+    index: int
+    label: str
+    bearing: float
+    distance: float
+    viewing_angle: float
+    corners: np.ndarray  # (4, 2) px, unclipped: TL, TR, BR, BL as seen from the front
+    depth: float  # forward depth of the centre (m)
+    columns: np.ndarray  # (W,) bool: columns where the object is in front of the walls
+    visible_fraction: float
+    bbox: tuple[int, int, int, int]
+    image: Any  # path of the catalogue picture (the texture cache key)
+
+
+def _world_objects(world: World) -> list:
+    """The world's objects; worlds from before objects existed have none."""
+    return list(getattr(world, "objects", None) or [])
+
+
+def _catalogue(catalogue: Any = None) -> Any:
+    if catalogue is not None:
+        return catalogue
+    from semantic.objects import default_catalogue
+    return default_catalogue()
+
+
+def object_corners(x: float, y: float, facing: float, width: float, height: float,
+                   elevation: float = 0.0) -> np.ndarray:
+    """A billboard's corners (4, 3): top-left, top-right, bottom-right, bottom-left as seen
+    by someone facing it (``facing`` is its outward normal, rad)."""
+    tx, ty = -math.sin(facing), math.cos(facing)  # the front viewer's right
+    hw = width / 2
+    top, bottom = elevation + height, elevation
+    return np.array([[x - tx * hw, y - ty * hw, top], [x + tx * hw, y + ty * hw, top],
+                     [x + tx * hw, y + ty * hw, bottom], [x - tx * hw, y - ty * hw, bottom]])
+
+
+def _object_views(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
+                  wall_t: np.ndarray, col_angles: np.ndarray,
+                  catalogue: Any = None) -> list[_ObjectView]:
+    """Every object that is at least partly visible, with its projection and occlusion."""
+    objects = _world_objects(world)
+    if not objects:
+        return []
+    catalogue = _catalogue(catalogue)
+    px, py, yaw = cam_pose
+    width, height = spec.width, spec.height
+    views = []
+    for i, obj in enumerate(objects):
+        entry = catalogue.entry(obj.label)
+        ox, oy = float(obj.x), float(obj.y)
+        distance = math.hypot(px - ox, py - oy)
+        if distance <= 1e-9 or distance > spec.max_range:
+            continue
+        fixed = getattr(obj, "facing", None)
+        facing = math.atan2(py - oy, px - ox) if fixed is None else float(fixed)
+        normal = np.array([math.cos(facing), math.sin(facing)])
+        cos_view = float(normal @ np.array([px - ox, py - oy])) / distance
+        if cos_view <= 0:
+            continue  # a fixed-facing object seen from behind or edge-on
+        corners3 = object_corners(ox, oy, facing, entry.width, entry.height, entry.elevation)
+        u, v, depth = project_points(corners3, cam_pose, tilt, zoom, spec)
+        if np.any(depth < NEAR):
+            continue
+        if u.max() < -0.5 or u.min() > width - 0.5 or v.max() < -0.5 or v.min() > height - 0.5:
+            continue
+        tx, ty = math.sin(facing), -math.cos(facing)
+        lo = max(0, math.ceil(u.min() - 0.5))
+        hi = min(width - 1, math.floor(u.max() + 0.5))
+        columns = np.zeros(width, dtype=bool)
+        if hi < lo:  # narrower than a column: take the nearest one
+            lo = hi = round(float(u.mean()))
+        if 0 <= lo <= hi < width:
+            a = yaw + col_angles[lo:hi + 1]
+            dx, dy = np.cos(a), np.sin(a)
+            sx, sy = ox - px, oy - py
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t_obj = (sx * ty - sy * tx) / (dx * ty - dy * tx)
+            columns[lo:hi + 1] = ~(wall_t[lo:hi + 1] < t_obj - OBJECT_TOLERANCE)
+        span = max(float(u.max() - u.min()), 1.0)
+        rows_in = max(0.0, min(v.max(), height - 0.5) - max(v.min(), -0.5))
+        fraction = min(1.0, columns.sum() / span) * min(1.0, rows_in / max(v.max() - v.min(), 1.0))
+        if fraction <= 0:
+            continue
+        visible_cols = np.flatnonzero(columns)
+        bbox = (int(visible_cols.min()), int(max(0, math.floor(v.min() + 0.5))),
+                int(visible_cols.max()), int(min(height - 1, math.floor(v.max() + 0.5))))
+        c, s = math.cos(yaw), math.sin(yaw)
+        rel = (ox - px, oy - py)
+        bearing = math.atan2(-s * rel[0] + c * rel[1], c * rel[0] + s * rel[1])
+        centre_z = entry.elevation + entry.height / 2
+        _, _, centre_depth = project_points(np.array([[ox, oy, centre_z]]), cam_pose,
+                                            tilt, zoom, spec)
+        views.append(_ObjectView(
+            index=i, label=obj.label, bearing=bearing, distance=distance,
+            viewing_angle=math.acos(min(1.0, cos_view)), corners=np.stack([u, v], axis=1),
+            depth=float(centre_depth[0]), columns=columns, visible_fraction=float(fraction),
+            bbox=bbox, image=entry.image))
+    return views
+
+
+def visible_objects(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
+                    catalogue: Any = None) -> list[dict[str, Any]]:
+    """Ground truth: the world's objects the camera sees, as :func:`render` draws them.
+
+    An object is reported when its centre is within ``spec.max_range``
+    (horizontal distance), none of its corners is behind the image plane, and
+    some of it falls inside the image in front of the walls.
+
+    Parameters
+    ----------
+    world : World
+        ``world.objects`` (label, x, y) are the objects; a world without the
+        attribute has none.
+    cam_pose, tilt, zoom, spec
+        As for :func:`render`.
+    catalogue : semantic.objects.Catalogue, optional
+        Pictures and sizes of the labels (default: the packaged catalogue).
+
+    Returns
+    -------
+    list of dict, in ``world.objects`` order, with keys ``index``, ``label``,
+    ``bearing`` (rad, CCW positive from the optical axis), ``distance`` (m,
+    horizontal, camera to the object's centre), ``depth`` (m, forward),
+    ``viewing_angle`` (rad, 0 for sprites), ``bbox`` (inclusive px box of the
+    visible part), ``apparent_width`` and ``apparent_height`` (px, unclipped),
+    ``corners`` ((4, 2) px, TL TR BR BL, unclipped) and ``visible_fraction``.
+    """
+    if not _world_objects(world):
+        return []
+    f = focal_length(spec, zoom)
+    angles = _column_angles(spec, f)
+    wall_t, _ = cast_rays(cam_pose[:2], cam_pose[2] + angles, world.segments)
+    out = []
+    for view in _object_views(world, cam_pose, tilt, zoom, spec, wall_t, angles, catalogue):
+        u, v = view.corners[:, 0], view.corners[:, 1]
+        out.append({
+            "index": view.index, "label": view.label, "bearing": view.bearing,
+            "distance": view.distance, "depth": view.depth,
+            "viewing_angle": view.viewing_angle, "bbox": view.bbox,
+            "apparent_width": float(u.max() - u.min()),
+            "apparent_height": float(v.max() - v.min()),
+            "corners": view.corners.copy(), "visible_fraction": view.visible_fraction,
+        })
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _object_mipmaps(image_path: Any) -> tuple[np.ndarray, ...]:
+    """A catalogue picture and its successive INTER_AREA halvings (for anti-aliased warping)."""
+    base = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
+    if base is None:
+        raise CameraError(f"cannot read the object picture {image_path}")
+    base.setflags(write=False)
+    levels = [base]
+    while levels[-1].shape[1] > 16 and levels[-1].shape[0] > 16:
+        prev = levels[-1]
+        half = cv2.resize(prev, (max(1, prev.shape[1] // 2), max(1, prev.shape[0] // 2)),
+                          interpolation=cv2.INTER_AREA)
+        half.setflags(write=False)
+        levels.append(half)
+    return tuple(levels)
+
+
+def _draw_object(img: np.ndarray, depth: np.ndarray, view: _ObjectView, spec: CameraSpec) -> None:
+    """Warp an object's catalogue picture into ``img`` (in place), hidden behind walls."""
+    shade = float(_light(np.array(view.depth))) * (0.75 + 0.25 * math.cos(view.viewing_angle))
+    _warp_texture(img, depth, _object_mipmaps(view.image), view.corners, view.columns, shade,
+                  view.depth, spec)
+
+
 # ---- rendering -----------------------------------------------------------------------------
 def _light(depth: np.ndarray) -> np.ndarray:
     """Fall-off of the scene's brightness with distance (1 at the camera)."""
@@ -624,7 +813,7 @@ def _light(depth: np.ndarray) -> np.ndarray:
 
 
 def render(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
-           rng: np.random.Generator) -> np.ndarray:
+           rng: np.random.Generator, catalogue: Any = None) -> np.ndarray:
     """Render the camera image.
 
     Parameters
@@ -642,12 +831,16 @@ def render(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
     rng : numpy.random.Generator
         Source of the image noise; the image is a deterministic function of
         the scene and the generator's state.
+    catalogue : semantic.objects.Catalogue, optional
+        Pictures and sizes of the world's objects (default: the packaged
+        catalogue; only loaded when the world has objects).
 
     Returns
     -------
     ndarray (height, width, 3) uint8
         BGR image: floor, walls (shaded by distance and by their angle to the
-        ray, with a dark skirting board) and ceiling, sign plates, then a
+        ray, with a dark skirting board) and ceiling, sign plates and
+        objects (billboards, see ``_object_views``), then a
         depth-dependent Gaussian blur (sigma ``blur_per_m * depth / zoom``)
         and Gaussian noise (``noise_std``).
     """
@@ -706,10 +899,14 @@ def render(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
         cls[:r1][mask] = 1
     img = cv2.multiply(_PALETTE.take(cls, axis=0), cv2.merge([shade, shade, shade]))
 
-    # sign plates, far to near
-    views = _plate_views(world, (px, py, yaw), tilt, zoom, spec, wall_t, angles)
+    # sign plates and objects, far to near
+    views: list = _plate_views(world, (px, py, yaw), tilt, zoom, spec, wall_t, angles)
+    views += _object_views(world, (px, py, yaw), tilt, zoom, spec, wall_t, angles, catalogue)
     for view in sorted(views, key=lambda vw: -vw.depth):
-        _draw_plate(img, depth, view, spec)
+        if isinstance(view, _ObjectView):
+            _draw_object(img, depth, view, spec)
+        else:
+            _draw_plate(img, depth, view, spec)
 
     # range-dependent blur, then noise
     sigma = spec.blur_per_m * np.minimum(depth, 1e3) / zoom
@@ -738,7 +935,20 @@ def _draw_plate(img: np.ndarray, depth: np.ndarray, view: _PlateView, spec: Came
     sign = view.sign
     tex_h = max(8, round(TEXTURE_WIDTH * sign.height / sign.width))
     levels = _plate_mipmaps(sign.text, TEXTURE_WIDTH, tex_h)
-    corners = view.corners.astype(np.float64)
+    shade = float(_light(np.array(view.depth))) * (0.75 + 0.25 * math.cos(view.viewing_angle))
+    _warp_texture(img, depth, levels, view.corners, view.columns, shade, view.depth, spec)
+
+
+def _warp_texture(img: np.ndarray, depth: np.ndarray, levels: tuple[np.ndarray, ...],
+                  corners: np.ndarray, columns: np.ndarray, shade: float, depth_value: float,
+                  spec: CameraSpec) -> None:
+    """Warp a mipmapped texture onto an image quad (in place), only in the ``columns`` given.
+
+    ``corners`` (4, 2) px are top-left, top-right, bottom-right, bottom-left;
+    the quad's pixels take the forward depth ``depth_value`` in ``depth``
+    (for the blur).
+    """
+    corners = corners.astype(np.float64)
     edge = max(np.hypot(*(corners[1] - corners[0])), np.hypot(*(corners[2] - corners[3])))
     tex = levels[0]
     for level in levels:  # the smallest level still at least 1.5x the apparent size
@@ -748,7 +958,7 @@ def _draw_plate(img: np.ndarray, depth: np.ndarray, view: _PlateView, spec: Came
     src = np.array([[-0.5, -0.5], [tw - 0.5, -0.5], [tw - 0.5, th - 0.5], [-0.5, th - 0.5]],
                    dtype=np.float32)
     M = cv2.getPerspectiveTransform(src, corners.astype(np.float32))
-    # warp only the plate's bounding box (plus a margin) to keep it cheap
+    # warp only the quad's bounding box (plus a margin) to keep it cheap
     W, H = spec.width, spec.height
     x0 = max(0, math.floor(corners[:, 0].min()) - 1)
     x1 = min(W, math.ceil(corners[:, 0].max()) + 2)
@@ -763,13 +973,12 @@ def _draw_plate(img: np.ndarray, depth: np.ndarray, view: _PlateView, spec: Came
                                 borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0))
     mask = cv2.warpPerspective(np.full((th, tw), 255, np.uint8), M, size, flags=cv2.INTER_LINEAR,
                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    alpha = mask.astype(np.float32) / 255.0 * view.columns[None, x0:x1]
-    shade = float(_light(np.array(view.depth))) * (0.75 + 0.25 * math.cos(view.viewing_angle))
+    alpha = mask.astype(np.float32) / 255.0 * columns[None, x0:x1]
     region = img[y0:y1, x0:x1]
     a = alpha[..., None]
     region *= 1.0 - a
     region += a * plate.astype(np.float32) * np.float32(shade)
-    depth[y0:y1, x0:x1] = np.where(alpha > 0.5, np.float32(view.depth), depth[y0:y1, x0:x1])
+    depth[y0:y1, x0:x1] = np.where(alpha > 0.5, np.float32(depth_value), depth[y0:y1, x0:x1])
 
 
 def _depth_blur(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:

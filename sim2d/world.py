@@ -14,6 +14,24 @@ A world file is a map_server YAML (``image``, ``resolution``, ``origin``,
 ``wall_thickness``
     Thickness of the vector walls (m, default 0.1).
 
+Ground truth for scoring a semantic map (all optional, so older files still load):
+
+``places: [{name, kind, polygon: [[x, y], ...]}]``
+    The true places: ``name`` is the sign text for signed rooms (``"MAIL ROOM"``)
+    or a plain name (``"CORRIDOR"``), ``kind`` an ontology class local name
+    (``MailRoom``, ``Corridor``, ``Hall``; see semantic/vocabulary.yaml). The
+    polygon outlines the place's clear interior (>= 3 corners, m); a ring such
+    as a corridor loop is one polygon whose hole is reached by a zero-width slit,
+    so even-odd point-in-polygon tests work on it.
+``doors: [{x, y, width, between: [placeA, placeB]}]``
+    True doors and openings: centre on the wall's centre line, clear width (m)
+    and the names of the two places they join (names from ``places``).
+``objects: [{label, x, y}]``
+    Objects in the world (``label`` an ontology class local name such as
+    ``Shredder``), at a point in free space.
+``timetable: FILE``
+    A timetable file, relative to the world file.
+
 Walls become line segments with a radius ("capsules"): the image's wall
 pixels are traced into contours through the centres of their border pixels,
 simplified, and given a radius of half a pixel, so the capsule's surface lies
@@ -61,6 +79,34 @@ class Sign:
         ])
 
 
+@dataclass(frozen=True)
+class TruePlace:
+    """A ground-truth place: its name (sign text for signed rooms), class and outline."""
+
+    name: str
+    kind: str  # ontology class local name (MailRoom, Corridor, Hall, ...)
+    polygon: np.ndarray  # (N, 2) corners in metres, world frame, not closed
+
+
+@dataclass(frozen=True)
+class TrueDoor:
+    """A ground-truth door or opening between two places."""
+
+    x: float
+    y: float
+    width: float  # clear width, m
+    between: tuple[str, str]  # the names of the two places it joins
+
+
+@dataclass(frozen=True)
+class WorldObject:
+    """An object standing in the world (label: ontology class local name)."""
+
+    label: str
+    x: float
+    y: float
+
+
 @dataclass
 class World:
     """A loaded world: wall capsules, signs, start poses and the source occupancy grid."""
@@ -74,6 +120,14 @@ class World:
     occupied: np.ndarray | None = None  # (H, W) bool, row 0 at the top (image order)
     source: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    places: list[TruePlace] = field(default_factory=list)
+    doors: list[TrueDoor] = field(default_factory=list)
+    objects: list[WorldObject] = field(default_factory=list)
+    timetable: Path | None = None
+
+    def place(self, name: str) -> TruePlace | None:
+        """The true place called ``name``, or None."""
+        return next((p for p in self.places if p.name == name), None)
 
     @property
     def start(self) -> tuple[float, float, float]:
@@ -208,6 +262,125 @@ def _signs(doc: LineDict, file: Path) -> list[Sign]:
     return signs
 
 
+def _entries(doc: LineDict, key: str, file: Path, shape: str, allowed: set[str]) -> list:
+    """The list under ``key`` as (index, line, mapping) triples, checked for unknown fields."""
+    raw = doc.get(key)
+    if raw is None:
+        return []
+    if not isinstance(raw, list):
+        raise WorldError(f"'{key}' must be a list of {shape}", file=file,
+                         line=line_of(doc, key), field=key)
+    out = []
+    for i, item in enumerate(raw):
+        line = line_of(raw, i)
+        if not isinstance(item, dict):
+            raise WorldError(f"each entry of '{key}' must be a mapping {shape}, got {item!r}",
+                             file=file, line=line, field=f"{key}[{i}]")
+        unknown = set(item) - allowed
+        if unknown:
+            raise WorldError(f"{key}[{i}] has unknown field(s) {sorted(map(str, unknown))}",
+                             file=file, line=line, field=f"{key}[{i}]",
+                             hint=f"An entry of '{key}' is {shape}.")
+        out.append((i, line, item))
+    return out
+
+
+def _name(item: dict, key: str, file: Path, line: int | None, where: str) -> str:
+    value = item.get(key)
+    if not isinstance(value, str) or not value.strip():
+        raise WorldError(f"{where} needs a non-empty text '{key}', got {value!r}", file=file,
+                         line=line, field=f"{where}.{key}",
+                         hint=f"Add '{key}: ...' to {where}.")
+    return value.strip()
+
+
+def _places(doc: LineDict, file: Path) -> list[TruePlace]:
+    places: list[TruePlace] = []
+    for i, line, item in _entries(doc, "places", file, "{name, kind, polygon: [[x, y], ...]}",
+                                  {"name", "kind", "polygon"}):
+        where = f"places[{i}]"
+        name = _name(item, "name", file, line, where)
+        kind = _name(item, "kind", file, line, where)
+        raw = item.get("polygon")
+        ok = isinstance(raw, list) and len(raw) >= 3 and all(
+            isinstance(p, list) and len(p) == 2 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                for v in p) for p in raw)
+        if not ok:
+            raise WorldError(f"{where} ({name!r}) needs a 'polygon' of at least 3 [x, y] corners "
+                             f"in metres, got {raw!r}", file=file,
+                             line=line_of(item, "polygon") or line, field=f"{where}.polygon",
+                             hint="Write the outline as polygon: [[x1, y1], [x2, y2], "
+                                  "[x3, y3], ...].")
+        polygon = np.asarray(raw, dtype=np.float64)
+        twice_area = float(np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1)
+                                  - np.roll(polygon[:, 0], -1) * polygon[:, 1]))
+        if abs(twice_area) < 1e-9:
+            raise WorldError(f"{where} ({name!r}) has a polygon of zero area", file=file,
+                             line=line_of(item, "polygon") or line, field=f"{where}.polygon",
+                             hint="Give the corners of the place's outline in order.")
+        if any(p.name == name for p in places):
+            raise WorldError(f"two places are called {name!r}", file=file, line=line,
+                             field=f"{where}.name", hint="Give each place a unique name.")
+        places.append(TruePlace(name=name, kind=kind, polygon=polygon))
+    return places
+
+
+def _doors(doc: LineDict, file: Path, places: list[TruePlace]) -> list[TrueDoor]:
+    names = {p.name for p in places}
+    doors = []
+    for i, line, item in _entries(doc, "doors", file, "{x, y, width, between: [placeA, placeB]}",
+                                  {"x", "y", "width", "between"}):
+        where = f"doors[{i}]"
+        x = _number(item, "x", file, where=where)
+        y = _number(item, "y", file, where=where)
+        width = _number(item, "width", file, positive=True, where=where)
+        between = item.get("between")
+        if not (isinstance(between, list) and len(between) == 2
+                and all(isinstance(b, str) and b.strip() for b in between)):
+            raise WorldError(f"{where} needs 'between: [placeA, placeB]', two place names, got "
+                             f"{between!r}", file=file, line=line_of(item, "between") or line,
+                             field=f"{where}.between",
+                             hint="Name the two places the door joins, as in 'places'.")
+        pair = (between[0].strip(), between[1].strip())
+        for b in pair:
+            if b not in names:
+                import difflib
+                close = difflib.get_close_matches(b, sorted(names), n=1)
+                raise WorldError(f"{where} joins {b!r}, which is not in 'places'", file=file,
+                                 line=line_of(item, "between") or line, field=f"{where}.between",
+                                 hint=f"Did you mean {close[0]!r}?" if close else
+                                 "Add the place to 'places' or fix the name.")
+        doors.append(TrueDoor(x=x, y=y, width=width, between=pair))
+    return doors
+
+
+def _objects(doc: LineDict, file: Path) -> list[WorldObject]:
+    objects = []
+    for i, line, item in _entries(doc, "objects", file, "{label, x, y}", {"label", "x", "y"}):
+        where = f"objects[{i}]"
+        label = _name(item, "label", file, line, where)
+        objects.append(WorldObject(label=label, x=_number(item, "x", file, where=where),
+                                   y=_number(item, "y", file, where=where)))
+    return objects
+
+
+def _timetable(doc: LineDict, file: Path) -> Path | None:
+    raw = doc.get("timetable")
+    if raw is None:
+        return None
+    if not isinstance(raw, str) or not raw.strip():
+        raise WorldError(f"'timetable' must be a file name, got {raw!r}", file=file,
+                         line=line_of(doc, "timetable"), field="timetable",
+                         hint="Give a path relative to the world file.")
+    path = (file.parent / raw.strip()).resolve()
+    if not path.is_file():
+        raise WorldError(f"timetable file '{raw}' not found (looked for {path})", file=file,
+                         line=line_of(doc, "timetable"), field="timetable",
+                         hint="The path is relative to the world file's folder.")
+    return path
+
+
 def _vector_walls(doc: LineDict, file: Path) -> np.ndarray:
     raw = doc.get("walls") or []
     if not isinstance(raw, list):
@@ -227,7 +400,8 @@ def _vector_walls(doc: LineDict, file: Path) -> np.ndarray:
 
 
 WORLD_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh",
-              "mode", "start", "starts", "signs", "walls", "wall_thickness", "name", "doc")
+              "mode", "start", "starts", "signs", "walls", "wall_thickness", "name", "doc",
+              "places", "doors", "objects", "timetable")
 
 
 def load_world(path: str | Path) -> World:
@@ -289,6 +463,15 @@ def load_world(path: str | Path) -> World:
     world = World(name=str(doc.get("name") or path.stem), segments=np.vstack(segments),
                   signs=_signs(doc, path), starts=starts, resolution=resolution,
                   origin=origin, occupied=occupied, source=str(path))
+    world.places = _places(doc, path)
+    world.doors = _doors(doc, path, world.places)
+    world.objects = _objects(doc, path)
+    world.timetable = _timetable(doc, path)
+    for i, obj in enumerate(world.objects):
+        if world_is_occupied(world, obj.x, obj.y):
+            raise WorldError(f"object {i} ({obj.label}) at ({obj.x:.2f}, {obj.y:.2f}) is inside "
+                             "a wall", file=path, line=line_of(doc["objects"], i),
+                             field=f"objects[{i}]", hint="Move it into free space.")
     for i, (x, y, _) in enumerate(world.starts):
         if world_is_occupied(world, x, y):
             raise WorldError(f"start pose {i} ({x:.2f}, {y:.2f}) is inside a wall", file=path,

@@ -24,3 +24,5 @@ def test_benchmarks_quick_run(tmp_path):
     detector = json.loads((tmp_path / "sign_detector.json").read_text())
     reader = json.loads((tmp_path / "sign_reader.json").read_text())
     assert detector and reader
+    for name in ("object_recogniser", "reasoner", "planner"):
+        assert json.loads((tmp_path / f"{name}.json").read_text()), name

@@ -46,6 +46,7 @@ def test_entry_point_toolbox_with_blocks_and_subgraphs(tmp_path, monkeypatch, wr
     good = FakeEntryPoint("mytools", "mytools", module)
     monkeypatch.setattr(importlib.metadata, "entry_points",
                         lambda group: [broken, good] if group == "semmap.blocks" else [])
+    import blocks.generic  # noqa: F401  (registers 'constant', even when this file runs alone)
     from blocks.core import registry as registry_module
     registry.blocks.update(registry_module.REGISTRY.blocks)  # what the decorator registered
     registry.ensure_loaded()

@@ -151,8 +151,8 @@ def test_generator_is_deterministic_and_committed_files_are_current(tmp_path):
     first, second = tmp_path / "a", tmp_path / "b"
     assert gen.main(["--out", str(first)]) == 0
     gen.generate(second)
-    written = sorted(p.name for p in first.iterdir())
-    assert written == sorted(p.name for p in second.iterdir())
+    written = sorted(p.name for p in first.iterdir() if p.is_file())
+    assert written == sorted(p.name for p in second.iterdir() if p.is_file())
     assert written == sorted(f"{n}.{ext}" for n in gen.BUILDERS for ext in ("png", "yaml"))
     for name in written:
         assert (first / name).read_bytes() == (second / name).read_bytes(), name
@@ -272,3 +272,110 @@ def test_unreadable_world_yaml_is_still_a_one_line_user_error(tmp_path):
     with pytest.raises(SemmapError) as info:
         load_world(path)
     assert "\n" not in str(info.value) and str(path) in str(info.value)
+
+
+# ---- ground truth: places, doors, objects, timetable ----------------------------------------
+TRUTH = GOOD + """\
+    places:
+      - {name: ROOM, kind: Office, polygon: [[0.3, 0.3], [1.0, 0.3], [1.0, 1.7], [0.3, 1.7]]}
+      - {name: NOOK, kind: Storage, polygon: [[1.0, 0.3], [1.7, 0.3], [1.7, 1.7], [1.0, 1.7]]}
+    doors:
+      - {x: 1.0, y: 1.0, width: 0.8, between: [ROOM, NOOK]}
+    objects:
+      - {label: Shredder, x: 1.2, y: 1.2}
+"""
+
+
+def test_world_ground_truth_loads(tmp_path):
+    w = load_world(write_world(tmp_path, TRUTH))
+    assert [p.name for p in w.places] == ["ROOM", "NOOK"]
+    assert w.places[0].kind == "Office" and w.places[0].polygon.shape == (4, 2)
+    assert w.doors[0].between == ("ROOM", "NOOK") and w.doors[0].width == 0.8
+    assert w.objects[0].label == "Shredder" and (w.objects[0].x, w.objects[0].y) == (1.2, 1.2)
+    assert w.place("NOOK") is w.places[1] and w.place("HALL") is None
+    assert w.timetable is None
+
+
+def test_world_timetable_resolves_relative_to_the_world_file(tmp_path):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "t.yaml").write_text("events: []\n")
+    w = load_world(write_world(tmp_path, GOOD + "    timetable: sub/t.yaml\n"))
+    assert w.timetable == (tmp_path / "sub" / "t.yaml").resolve()
+
+
+def test_worlds_without_ground_truth_still_load(tmp_path):
+    w = load_world(write_world(tmp_path, GOOD))
+    assert w.places == [] and w.doors == [] and w.objects == [] and w.timetable is None
+
+
+@pytest.mark.parametrize("old, new, field, line", [
+    pytest.param("kind: Office, ", "", "places[0].kind", 11, id="place without kind"),
+    pytest.param("name: ROOM, ", "name: 3, ", "places[0].name", 11, id="place name a number"),
+    pytest.param("[[0.3, 0.3], [1.0, 0.3], [1.0, 1.7], [0.3, 1.7]]", "[[0.3, 0.3], [1.0, 0.3]]",
+                 "places[0].polygon", 11, id="polygon of two corners"),
+    pytest.param("[[0.3, 0.3], [1.0, 0.3], [1.0, 1.7], [0.3, 1.7]]", "[[0.3, 0.3], [1.0], "
+                 "[1.0, 1.7]]", "places[0].polygon", 11, id="polygon corner of one number"),
+    pytest.param("[[0.3, 0.3], [1.0, 0.3], [1.0, 1.7], [0.3, 1.7]]", "[[0, 0], [1, 1], [2, 2]]",
+                 "places[0].polygon", 11, id="polygon of zero area"),
+    pytest.param("name: NOOK", "name: ROOM", "places[1].name", 12, id="duplicate place name"),
+    pytest.param("kind: Storage, ", "kind: Storage, colour: red, ", "places[1]", 12,
+                 id="place unknown field"),
+    pytest.param("between: [ROOM, NOOK]", "between: [ROOM, NOK]", "doors[0].between", 14,
+                 id="door joins an unknown place"),
+    pytest.param("between: [ROOM, NOOK]", "between: [ROOM]", "doors[0].between", 14,
+                 id="door between one place"),
+    pytest.param("width: 0.8", "width: -1", "doors[0].width", 14, id="negative door width"),
+    pytest.param("y: 1.0, width", "width", "doors[0]", 14, id="door without y"),
+    pytest.param("label: Shredder, ", "", "objects[0].label", 16, id="object without label"),
+    pytest.param("x: 1.2, y: 1.2}", "x: 1.2, y: high}", "objects[0].y", 16,
+                 id="object y a string"),
+    pytest.param("x: 1.2, y: 1.2}", "x: 0.2, y: 1.2}", "objects[0]", 16, id="object in a wall"),
+    pytest.param("objects:\n      - {label: Shredder, x: 1.2, y: 1.2}",
+                 "objects: {label: Shredder}", "objects", 15, id="objects not a list"),
+    pytest.param("objects:\n", "timetable: nowhere.yaml\n    objects:\n", "timetable", 15,
+                 id="timetable missing"),
+])
+def test_malformed_ground_truth_names_file_line_and_field(tmp_path, old, new, field, line):
+    assert old in TRUTH
+    path = write_world(tmp_path, TRUTH.replace(old, new, 1))
+    with pytest.raises(WorldError) as info:
+        load_world(path)
+    err = info.value
+    assert err.field is not None and field in err.field, (err.field, str(err))
+    assert err.file == str(path) and err.line == line, (err.line, str(err))
+    assert "\n" not in str(err) and str(path) in str(err)
+
+
+def test_office_ground_truth_matches_the_plan():
+    w = world("office")
+    signed = {s.text for s in w.signs}
+    rooms = {p.name for p in w.places if p.kind != "Corridor"}
+    assert rooms == signed and w.place("CORRIDOR").kind == "Corridor"
+    assert w.place("MAIL ROOM").kind == "MailRoom" and w.place("ADMIN").kind == "Administration"
+    assert len(w.doors) == 14 and all(d.width == 1.0 for d in w.doors)
+    labels = {o.label for o in w.objects}
+    assert {"Shredder", "Printer", "Microscope", "Projector", "Toolbox", "CoffeeMachine",
+            "Bookshelf"} <= labels
+    for obj in w.objects:  # in free space, inside one place, near (<= 2.5 m) that place's door
+        owners = [p for p in w.places if gen.point_in_polygon(obj.x, obj.y, p.polygon)]
+        assert len(owners) == 1, obj
+        doors = [d for d in w.doors if owners[0].name in d.between]
+        assert min(math.hypot(obj.x - d.x, obj.y - d.y) for d in doors) <= 2.5, obj
+    shredder = next(o for o in w.objects if o.label == "Shredder")
+    assert gen.point_in_polygon(shredder.x, shredder.y, w.place("KITCHEN").polygon)
+
+
+def test_corridor_ring_polygon_covers_the_loop_but_not_the_core():
+    ring = world("office").place("CORRIDOR").polygon
+    for x, y in ((1.0, 10.0), (15.0, 6.0), (15.0, 14.0), (29.0, 10.0), (1.0, 12.0)):
+        assert gen.point_in_polygon(x, y, ring), (x, y)
+    for x, y in ((15.0, 10.0), (5.0, 10.0), (15.0, 3.0), (15.0, 17.0)):
+        assert not gen.point_in_polygon(x, y, ring), (x, y)
+
+
+def test_hospital_ground_truth_doors_join_known_places():
+    w = world("hospital")
+    names = {p.name for p in w.places}
+    assert {"HALL", "CORRIDOR WEST", "CORRIDOR EAST", "PHARMACY", "ICU"} <= names
+    assert all(set(d.between) <= names for d in w.doors)
+    assert any(o.label == "Medicine" for o in w.objects)

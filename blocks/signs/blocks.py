@@ -263,6 +263,11 @@ class Correlate(Block):
     drawn on it.  Writes ``DIR/signs.json`` and ``DIR/maps/hybrid.png``; with
     ``world`` set, scores the signs against the world's into run.json (with
     ``truth`` connected, also against the signs the run passed).
+
+    The ``signs`` output is this block: ``current()`` gives the signs read so
+    far and ``version`` counts the sightings merged, so a knowledge base can
+    update as each sign is read; after :meth:`finish`, ``current()`` gives the
+    final, drift-corrected list that ``signs.json`` holds.
     """
 
     inputs = {"sighting": Port.message(required=False, default=None,
@@ -271,6 +276,8 @@ class Correlate(Block):
               "map": Port(kind="handle", required=False, default=None,
                           doc="the map to draw on (snapshot()); corrected_pose(tick) if any"),
               "truth": TRUTH}
+    outputs = {"signs": Port(kind="handle", doc="the signs read so far: current() gives "
+                             "{text, x, y, facing, ...} dicts, version counts the sightings")}
     params = {"robot": ROBOT, "world": WORLD,
               "min_confidence": Param(float, 0.5, "weaker readings stay out of signs.json",
                                       min=0.0, max=1.0),
@@ -288,30 +295,42 @@ class Correlate(Block):
         self._map: Any = None
         self._path: list[np.ndarray] = []
         self._truth: dict[int, np.ndarray] = {}  # tick -> true pose (scoring only)
+        self.version = 0
+        self._final: list[dict] | None = None
+
+    def current(self) -> list[dict]:
+        """The signs read so far (final and drift-corrected once the run has finished)."""
+        if self._final is not None:
+            return self._final
+        return self.signs.signs(min_confidence=self.p.min_confidence)
 
     def step(self, pose: np.ndarray, sighting: dict | None = None, map: Any = None,  # noqa: A002
-             truth: np.ndarray | None = None) -> None:
+             truth: np.ndarray | None = None) -> dict[str, Any]:
         self._path.append(np.array(pose[:3], dtype=np.float64))
         if truth is not None:
             self._truth[self.ctx.tick] = np.array(truth[:3], dtype=np.float64)
         if map is not None:
             self._map = map
         if sighting is None:
-            return
+            return {"signs": self}
         capture, reading = sighting["capture"], sighting["reading"]
         if capture.tick in self._seen_ticks:
-            return  # the reader's outputs hold between captures
+            return {"signs": self}  # the reader's outputs hold between captures
         self._seen_ticks.add(capture.tick)
         from .correlate import sighting_from_capture
         s = sighting_from_capture(capture, reading, mount=self._mount)
         if s is not None:
             self.signs.add(s)
+            self.version += 1
+        return {"signs": self}
 
     def finish(self) -> None:
         corrected = getattr(self._map, "corrected_pose", None)
         if corrected is not None:
             self.signs.replace_poses(corrected)
         signs = self.signs.signs(min_confidence=self.p.min_confidence)
+        self._final = signs
+        self.version += 1
         self.report("signs", len(signs))
         self.report("sightings", sum(s["sightings"] for s in signs))
         if self.ctx.out_dir is not None:

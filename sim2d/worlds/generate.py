@@ -18,6 +18,15 @@ Conventions
   door's edge, facing into the corridor.
 * Each start is >= 0.6 m from every wall, facing along a wall that is on the
   robot's right (the robot explores by following the right-hand wall).
+* Ground truth for the office and hospital: ``places`` (every room, hall and
+  corridor as the polygon of its clear interior; signed rooms are named by
+  their sign text and classed with ``semantic.vocabulary``), ``doors`` (centre
+  on the wall's centre line, clear width, the two places joined; openings
+  between a corridor and a hall count as doors) and ``objects`` (each inside its
+  room, within about 2.5 m of the door and roughly in line with the opening,
+  so a camera in the corridor can see it). The office's corridor loop is ONE
+  place, "CORRIDOR": its polygon is the outer rectangle with the core cut out
+  through a zero-width slit (even-odd rasterisation gives the ring).
 """
 from __future__ import annotations
 
@@ -30,7 +39,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from sim2d.world import World, distance_to_segments, load_world
+from sim2d.world import World, distance_to_segments, load_world, world_is_occupied
 
 WORLDS_DIR = Path(__file__).parent
 RESOLUTION = 0.05  # m per pixel
@@ -59,6 +68,12 @@ class Plan:
         (x, y, theta) in metres and radians.
     signs
         ``{text, x, y, facing}`` mappings, facing in degrees.
+    places, doors, objects
+        Ground truth: ``{name, kind, polygon}``, ``{x, y, width, between}`` and
+        ``{label, x, y}`` mappings (see :mod:`sim2d.world`).
+    timetable
+        The world's timetable file (who works where and when), relative to the
+        world file; hand-written, in ``timetables/NAME.yaml``.
     """
 
     name: str
@@ -67,6 +82,10 @@ class Plan:
     origin: tuple[float, float]
     start: tuple[float, float, float] = (0.0, 0.0, 0.0)
     signs: list[dict] = field(default_factory=list)
+    places: list[dict] = field(default_factory=list)
+    doors: list[dict] = field(default_factory=list)
+    objects: list[dict] = field(default_factory=list)
+    timetable: str = ""
 
 
 # ---- drawing helpers ------------------------------------------------------------------------
@@ -245,6 +264,43 @@ def signed_door(plan: Plan, text: str, axis: str, centre: float, lo: float, hi: 
     sign_on_wall(plan, text, axis, centre, along, side)
 
 
+def _place_class(text: str) -> str:
+    """The ontology class of a signed room, from the shared vocabulary."""
+    from semantic.vocabulary import load_vocabulary
+
+    cls = load_vocabulary().place_class(text)
+    if cls is None:
+        raise ValueError(f"the vocabulary has no class for the sign {text!r}")
+    return cls
+
+
+def true_place(plan: Plan, name: str, x0: float, y0: float, x1: float, y1: float,
+               kind: str | None = None) -> None:
+    """Record a rectangular ground-truth place (its clear interior).
+
+    Parameters
+    ----------
+    plan
+        The plan whose place list gets it (in place).
+    name
+        Sign text for signed rooms, a plain name otherwise.
+    x0, y0, x1, y1
+        The clear interior's corners, metres.
+    kind
+        Ontology class; by default the vocabulary's class of ``name``.
+    """
+    plan.places.append({"name": name, "kind": kind or _place_class(name),
+                        "polygon": [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]})
+
+
+def true_door(plan: Plan, axis: str, centre: float, lo: float, hi: float, a: str,
+              b: str) -> None:
+    """Record a ground-truth door between places ``a`` and ``b`` (as for :func:`door`)."""
+    mid = (lo + hi) / 2
+    x, y = (mid, centre) if axis == "x" else (centre, mid)
+    plan.doors.append({"x": x, "y": y, "width": hi - lo, "between": (a, b)})
+
+
 def polygon_mask(plan: Plan, vertices: list[tuple[float, float]]) -> np.ndarray:
     """Pixels whose centres lie inside a polygon (even-odd rule).
 
@@ -378,16 +434,38 @@ def build_office() -> Plan:
         wall(plan, x, 15.0, x, 20.0)
     for x in (13.0, 16.0, 19.0):
         wall(plan, x, 7.2, x, 12.8)
+    # the corridor loop: outer rectangle minus the core, joined by a slit at y = 10
+    plan.places.append({"name": "CORRIDOR", "kind": "Corridor", "polygon": [
+        (0.1, 10.0), (0.1, 5.1), (29.9, 5.1), (29.9, 14.9), (0.1, 14.9), (0.1, 10.0),
+        (2.1, 10.0), (2.1, 12.9), (27.9, 12.9), (27.9, 7.1), (2.1, 7.1), (2.1, 10.0)]})
     for i, text in enumerate(OFFICE_SOUTH):  # corridor to the north; robot going east
         a = 6.0 * i
         signed_door(plan, text, "x", 5.0, a + 3.0, a + 4.0, side=+1, sign_side=-1)
+        true_place(plan, text, a + 0.1, 0.1, a + 5.9, 4.9)
+        true_door(plan, "x", 5.0, a + 3.0, a + 4.0, text, "CORRIDOR")
     for i, text in enumerate(OFFICE_NORTH):  # corridor to the south; robot going west
         b = 6.0 * (i + 1)
         signed_door(plan, text, "x", 15.0, b - 4.0, b - 3.0, side=-1, sign_side=+1)
-    signed_door(plan, "LIBRARY", "x", 7.2, 6.0, 7.0, side=-1, sign_side=-1)
-    signed_door(plan, "ELEVATOR", "x", 7.2, 14.0, 15.0, side=-1, sign_side=+1)
-    signed_door(plan, "STAIRS", "x", 12.8, 17.0, 18.0, side=+1, sign_side=+1)
-    signed_door(plan, "SERVER ROOM", "x", 12.8, 22.0, 23.0, side=+1, sign_side=+1)
+        true_place(plan, text, b - 5.9, 15.1, b - 0.1, 19.9)
+        true_door(plan, "x", 15.0, b - 4.0, b - 3.0, text, "CORRIDOR")
+    for text, wall_y, lo, hi, side, sign_side, (x0, x1) in (
+            ("LIBRARY", 7.2, 6.0, 7.0, -1, -1, (2.3, 12.9)),
+            ("ELEVATOR", 7.2, 14.0, 15.0, -1, +1, (13.1, 15.9)),
+            ("STAIRS", 12.8, 17.0, 18.0, +1, +1, (16.1, 18.9)),
+            ("SERVER ROOM", 12.8, 22.0, 23.0, +1, +1, (19.1, 27.7))):
+        signed_door(plan, text, "x", wall_y, lo, hi, side=side, sign_side=sign_side)
+        true_place(plan, text, x0, 7.3, x1, 12.7)
+        true_door(plan, "x", wall_y, lo, hi, text, "CORRIDOR")
+    plan.objects += [  # inside the rooms, in view of the corridor through the doors
+        {"label": "Shredder", "x": 27.5, "y": 3.2},       # kitchen (not the mail room)
+        {"label": "CoffeeMachine", "x": 28.6, "y": 3.4},  # kitchen, beside the counter
+        {"label": "Printer", "x": 15.0, "y": 3.4},        # admin, behind the door
+        {"label": "Toolbox", "x": 21.5, "y": 3.5},        # maintenance, on the bench's edge
+        {"label": "Microscope", "x": 2.5, "y": 16.5},     # lab, in front of the bench
+        {"label": "Projector", "x": 8.5, "y": 16.4},      # meeting room, by the table
+        {"label": "Bookshelf", "x": 6.5, "y": 8.4},       # library, inside the door
+        {"label": "ServerRack", "x": 22.5, "y": 11.4},    # server room, inside the door
+    ]
     furniture = [
         (1.5, 2.0, 4.0, 2.8), (0.1, 1.0, 0.6, 4.0),      # mail room: sorting table, pigeonholes
         (8.0, 1.8, 9.8, 2.6),                            # manager: desk
@@ -403,6 +481,7 @@ def build_office() -> Plan:
     for box in furniture:
         fill_box(plan, *box)
     plan.start = (1.0, 5.8, 0.0)
+    plan.timetable = "timetables/office.yaml"
     return plan
 
 
@@ -436,16 +515,43 @@ def build_hospital() -> Plan:
         wall(plan, x, 0.0, x, 6.0)
     for x in (4.0, 8.0, 32.0):
         wall(plan, x, 8.6, x, 16.0)
+    # ground truth: two corridor legs and the hall, joined by 2.4 m openings at x = 16, 24
+    true_place(plan, "CORRIDOR WEST", 0.1, 6.1, 16.0, 8.5, kind="Corridor")
+    true_place(plan, "HALL", 16.0, 3.1, 24.0, 11.5, kind="Hall")
+    true_place(plan, "CORRIDOR EAST", 24.0, 6.1, 39.9, 8.5, kind="Corridor")
+    true_door(plan, "y", 16.0, 6.1, 8.5, "CORRIDOR WEST", "HALL")
+    true_door(plan, "y", 24.0, 6.1, 8.5, "HALL", "CORRIDOR EAST")
     # south side: corridor to the north, robot going east, sign before the door
-    for text, lo, hi in (("WARD A", 3.0, 4.2), ("WARD B", 11.0, 12.2), ("WARD C", 27.0, 28.2),
-                         ("OPERATING ROOM", 35.0, 36.6)):
+    for text, lo, hi, (x0, x1), leg in (
+            ("WARD A", 3.0, 4.2, (0.1, 7.9), "CORRIDOR WEST"),
+            ("WARD B", 11.0, 12.2, (8.1, 15.9), "CORRIDOR WEST"),
+            ("WARD C", 27.0, 28.2, (24.1, 31.9), "CORRIDOR EAST"),
+            ("OPERATING ROOM", 35.0, 36.6, (32.1, 39.9), "CORRIDOR EAST")):
         signed_door(plan, text, "x", 6.0, lo, hi, side=+1, sign_side=-1)
+        true_place(plan, text, x0, 0.1, x1, 5.9)
+        true_door(plan, "x", 6.0, lo, hi, text, leg)
     signed_door(plan, "PHARMACY", "x", 3.0, 19.4, 20.6, side=+1, sign_side=-1)
+    true_place(plan, "PHARMACY", 16.1, 0.1, 23.9, 2.9)
+    true_door(plan, "x", 3.0, 19.4, 20.6, "PHARMACY", "HALL")
     # north side: corridor to the south, robot going west, sign before the door
-    for text, lo, hi in (("STAIRS", 1.2, 2.2), ("ELEVATOR", 5.0, 6.2), ("WARD D", 11.8, 13.0),
-                         ("ICU", 27.8, 29.0), ("LABORATORY", 35.8, 37.0)):
+    for text, lo, hi, (x0, x1), leg in (
+            ("STAIRS", 1.2, 2.2, (0.1, 3.9), "CORRIDOR WEST"),
+            ("ELEVATOR", 5.0, 6.2, (4.1, 7.9), "CORRIDOR WEST"),
+            ("WARD D", 11.8, 13.0, (8.1, 15.9), "CORRIDOR WEST"),
+            ("ICU", 27.8, 29.0, (24.1, 31.9), "CORRIDOR EAST"),
+            ("LABORATORY", 35.8, 37.0, (32.1, 39.9), "CORRIDOR EAST")):
         signed_door(plan, text, "x", 8.6, lo, hi, side=-1, sign_side=+1)
+        true_place(plan, text, x0, 8.7, x1, 15.9)
+        true_door(plan, "x", 8.6, lo, hi, text, leg)
     signed_door(plan, "RADIOLOGY", "x", 11.6, 19.4, 20.6, side=-1, sign_side=+1)
+    true_place(plan, "RADIOLOGY", 16.1, 11.7, 23.9, 15.9)
+    true_door(plan, "x", 11.6, 19.4, 20.6, "RADIOLOGY", "HALL")
+    plan.objects += [
+        {"label": "Medicine", "x": 20.0, "y": 1.6},        # pharmacy, below the door
+        {"label": "Microscope", "x": 36.4, "y": 10.5},     # laboratory, inside the door
+        {"label": "FireExtinguisher", "x": 23.5, "y": 10.5},  # hall, north-east corner
+        {"label": "Workbench", "x": 20.0, "y": 12.6},      # radiology: by the scanner
+    ]
     # the nurses' station: an island counter in the hall, signed on its west face
     fill_box(plan, 18.5, 6.5, 21.5, 8.1)
     sign_on_wall(plan, "NURSES STATION", "y", 18.5, 7.3, side=-1, thickness=0.0)
@@ -464,6 +570,7 @@ def build_hospital() -> Plan:
     for box in furniture:
         fill_box(plan, *box)
     plan.start = (1.2, 6.8, 0.0)
+    plan.timetable = "timetables/hospital.yaml"
     return plan
 
 
@@ -509,6 +616,8 @@ def world_yaml(plan: Plan) -> str:
         "mode: trinary",
         "start: [" + ", ".join(_num(v) for v in plan.start) + "]",
     ]
+    if plan.timetable:
+        lines.append(f"timetable: {plan.timetable}")
     if plan.signs:
         lines.append("signs:")
         for s in plan.signs:
@@ -516,6 +625,22 @@ def world_yaml(plan: Plan) -> str:
                          f"y: {_num(s['y'])}, facing: {_num(s['facing'])}}}")
     else:
         lines.append("signs: []")
+    if plan.places:
+        lines.append("places:")
+        for p in plan.places:
+            corners = ", ".join(f"[{_num(x)}, {_num(y)}]" for x, y in p["polygon"])
+            lines.append(f"  - {{name: {json.dumps(p['name'])}, kind: {p['kind']}, "
+                         f"polygon: [{corners}]}}")
+    if plan.doors:
+        lines.append("doors:")
+        for d in plan.doors:
+            a, b = d["between"]
+            lines.append(f"  - {{x: {_num(d['x'])}, y: {_num(d['y'])}, width: "
+                         f"{_num(d['width'])}, between: [{json.dumps(a)}, {json.dumps(b)}]}}")
+    if plan.objects:
+        lines.append("objects:")
+        for o in plan.objects:
+            lines.append(f"  - {{label: {o['label']}, x: {_num(o['x'])}, y: {_num(o['y'])}}}")
     return "\n".join(lines) + "\n"
 
 
@@ -542,6 +667,11 @@ def write_plan(plan: Plan, out_dir: Path) -> Path:
     (out_dir / f"{plan.name}.png").write_bytes(png.tobytes())
     path = out_dir / f"{plan.name}.yaml"
     path.write_text(world_yaml(plan), encoding="utf-8", newline="\n")
+    if plan.timetable and out_dir.resolve() != WORLDS_DIR.resolve():
+        # the timetable is hand-written, not generated: copy it so the world loads
+        target = out_dir / plan.timetable
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes((WORLDS_DIR / plan.timetable).read_bytes())
     return path
 
 
@@ -590,7 +720,28 @@ def check_world(world: World, min_clearance: float = START_CLEARANCE) -> list[st
                           sign.y + 0.5 * math.sin(sign.facing)])
         if distance_to_segments(front, segs).min() <= 0.2:
             problems.append(f"sign {sign.text!r} does not face free space")
+    for d in world.doors:
+        if world_is_occupied(world, d.x, d.y):
+            problems.append(f"door {d.between} at ({d.x}, {d.y}) is not in an opening")
+    for obj in world.objects:
+        owners = [p.name for p in world.places if point_in_polygon(obj.x, obj.y, p.polygon)]
+        if world.places and not owners:
+            problems.append(f"object {obj.label} at ({obj.x}, {obj.y}) is in no place")
+    signed = {s.text for s in world.signs}
+    for p in world.places:
+        if p.kind not in ("Corridor", "Hall") and p.name not in signed:
+            problems.append(f"place {p.name!r} has no sign")
     return problems
+
+
+def point_in_polygon(x: float, y: float, polygon: np.ndarray) -> bool:
+    """Even-odd test of one point against a polygon ((N, 2) corners, metres)."""
+    inside = False
+    pts = np.asarray(polygon, dtype=np.float64)
+    for (x1, y1), (x2, y2) in zip(pts, np.roll(pts, -1, axis=0)):
+        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
+            inside = not inside
+    return inside
 
 
 def generate(out_dir: str | Path = WORLDS_DIR, names: list[str] | None = None,

@@ -1,0 +1,1 @@
+"""Object blocks: the object recogniser as a dataflow block (see semantic.recognise)."""

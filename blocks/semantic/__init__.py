@@ -1,0 +1,2 @@
+"""Semantic blocks: the knowledge base and the semantic map as dataflow nodes
+(thin adapters over the :mod:`semantic` package)."""

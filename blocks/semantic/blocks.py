@@ -1,0 +1,162 @@
+"""The semantic knowledge block: the paper's semantic knowledge mapping module as one node.
+
+While the robot runs, every newly read sign and every newly seen object
+updates the knowledge base, which is reasoned over again at once (the
+reasoning time is reported to run.json). When the run finishes, the map is
+segmented into places, the signs label the rooms behind their doors, and the
+semantic map is written: ``DIR/semantic_map.ttl``, ``DIR/places.geojson`` and
+``DIR/maps/semantic.png``. With ``world`` set, the places are scored against
+the world's true rooms and doors.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from blocks.core import Block, Param, Port, block
+
+WORLD = Param(str, "", "world whose true rooms score the places, and whose timetable is used "
+              "when `timetable` is empty (name or YAML; empty: none)", role="world")
+
+
+@block("semantic.knowledge", category="semantic")
+class Knowledge(Block):
+    """Semantic knowledge mapping: a reasoned knowledge base of places, signs, objects, people.
+
+    Connect the sign correlation's ``signs`` handle, the offline map's ``map``
+    handle and, optionally, the object recogniser's ``objects``. The knowledge
+    base is re-reasoned whenever a sign or an object is added; at the end the
+    map's places are segmented, labelled and written out with the knowledge.
+    """
+
+    inputs = {
+        "signs": Port(kind="handle", doc="the sign correlation: current() gives the signs read"),
+        "map": Port(kind="handle", required=False, default=None,
+                    doc="the map to segment into places (snapshot() gives an OccupancyMap)"),
+        "objects": Port(kind="handle", required=False, default=None,
+                        doc="the object recogniser: current() gives the objects seen so far"),
+        "pose": Port.array("float64", (3,), unit="m,m,rad", required=False, default=None,
+                           doc="the robot's pose (its path tells the corridor from the rooms)"),
+    }
+    params = {
+        "ontology": Param(str, "", "ontology file in Turtle (empty: the packaged indoor.ttl)"),
+        "timetable": Param(str, "", "timetable YAML (empty: the world's, if it names one)"),
+        "world": WORLD,
+        "door_width_max": Param(float, 1.3, "openings narrower than this separate places",
+                                unit="m", min=0.2),
+        "min_place_area": Param(float, 1.0, "smaller regions join their neighbour",
+                                unit="m^2", min=0.0),
+        "explored_coverage": Param(float, 0.5, "a room counts as explored once the map has "
+                                   "seen this share of it", min=0.0, max=1.0),
+        "live": Param(bool, True, "re-reason while running, as each sign or object arrives"),
+    }
+
+    def setup(self) -> None:
+        from semantic.vocabulary import load_vocabulary
+        self._vocabulary = load_vocabulary()
+        self._timetable = self._load_timetable()
+
+    def reset(self) -> None:
+        self._signs: Any = None
+        self._objects: Any = None
+        self._map: Any = None
+        self._seen = (-1, -1)
+        self._reason_ms: list[float] = []
+        self._path: list[np.ndarray] = []
+
+    # ---- run time ------------------------------------------------------------------------
+    def step(self, signs: Any, map: Any = None, objects: Any = None,  # noqa: A002
+             pose: np.ndarray | None = None) -> None:
+        self._signs, self._map = signs, map if map is not None else self._map
+        if objects is not None:
+            self._objects = objects
+        if pose is not None:
+            self._path.append(np.asarray(pose[:2], dtype=np.float64))
+        if not self.p.live:
+            return
+        version = (getattr(signs, "version", 0), getattr(objects, "version", 0))
+        if version == self._seen:
+            return
+        self._seen = version
+        sign_list, object_list = self._current()
+        if not sign_list and not object_list:
+            return
+        from semantic.semantic_map import live_kb
+        kb = live_kb(sign_list, object_list, ontology=self.p.ontology or None,
+                     timetable=self._timetable, vocabulary=self._vocabulary)
+        t0 = time.perf_counter()
+        kb.reason()
+        self._reason_ms.append((time.perf_counter() - t0) * 1e3)
+
+    def _current(self) -> tuple[list[dict], list[dict]]:
+        signs = self._signs.current() if self._signs is not None else []
+        objects = self._objects.current() if self._objects is not None else []
+        return list(signs), list(objects)
+
+    # ---- the end of the run ----------------------------------------------------------------
+    def finish(self) -> None:
+        if self._reason_ms:
+            self.report("live_updates", len(self._reason_ms))
+            self.report("live_reason_ms_mean", float(np.mean(self._reason_ms)))
+            self.report("live_reason_ms_max", float(np.max(self._reason_ms)))
+        snapshot = getattr(self._map, "snapshot", None)
+        occupancy = snapshot() if snapshot is not None else None
+        if occupancy is None:
+            self.report("places", 0)
+            return
+        from semantic.semantic_map import build_semantic_map, write_semantic_map
+        signs, objects = self._current()
+        path = self._corrected_path()
+        sm = build_semantic_map(occupancy, signs, objects, ontology=self.p.ontology or None,
+                                timetable=self._timetable, vocabulary=self._vocabulary,
+                                segment_options={"door_width_max": self.p.door_width_max,
+                                                 "min_place_area": self.p.min_place_area},
+                                path=path)
+        self.semantic_map = sm
+        self.report("places", len(sm.places.places))
+        self.report("doors", len(sm.places.doors))
+        self.report("signed_places", len(sm.names))
+        self.report("signs_without_place", sum(1 for p in sm.sign_places.values() if p is None))
+        self.report("objects", len(objects))
+        for key, value in sm.timings_ms.items():
+            self.report(key, round(value, 2))
+        if self.ctx.out_dir is not None:
+            write_semantic_map(self.ctx.out_dir, sm, occupancy, signs=signs, objects=objects)
+            for name in ("semantic_map.ttl", "places.geojson", "maps/semantic.png"):
+                self.output_path(name)  # listed among the run's outputs
+        if self.p.world:
+            self._score(sm)
+
+    def _corrected_path(self) -> np.ndarray | None:
+        corrected = getattr(self._map, "corrected_path", None)
+        if corrected is not None:
+            path = corrected()
+            if path is not None and len(path):
+                return np.asarray(path)[:, :2]
+        return np.array(self._path) if self._path else None
+
+    def _world(self):
+        if getattr(self, "_loaded_world", None) is None:
+            from sim2d.blocks import resolve_world
+            from sim2d.world import load_world
+            self._loaded_world = load_world(resolve_world(self.p.world))
+        return self._loaded_world
+
+    def _load_timetable(self):
+        from semantic.timetable import load_timetable
+        if self.p.timetable:
+            return load_timetable(self.p.timetable)
+        if self.p.world:
+            path = getattr(self._world(), "timetable", None)
+            if path is not None:
+                return load_timetable(path)
+        return None
+
+    def _score(self, sm) -> None:
+        from semantic.place_score import score_places
+        score = score_places(sm.places, self._world(), names=sm.names,
+                             explored=self.p.explored_coverage)
+        for key, value in score.items():
+            self.report(f"rooms_{key}" if not key.startswith("rooms") else key, value)

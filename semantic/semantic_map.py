@@ -1,0 +1,238 @@
+"""The semantic map: places segmented from the occupancy map, labelled by the signs read,
+furnished with the objects seen, and reasoned over by the knowledge base.
+
+This is the paper's semantic knowledge mapping module (section 2.4) as plain
+functions: :func:`build_semantic_map` joins the spatial hierarchy (places,
+doors) and the conceptual one (the ontology's place kinds, functions,
+equipment, roles) the way Galindo et al.'s semantic maps do, and
+:func:`write_semantic_map` writes what a user or the query planner reads:
+``semantic_map.ttl``, ``places.geojson`` and a picture.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blocks.maps.mapio import OccupancyMap
+
+from .kb import KnowledgeBase
+from .places import PlaceMap, attach_signs, segment_places
+from .vocabulary import Vocabulary, load_vocabulary
+
+__all__ = ["SemanticMap", "build_semantic_map", "sign_place_id", "write_semantic_map"]
+
+#: The kind given to a segmented place no sign names, by its shape.
+UNSIGNED_KIND = {"corridor": "Corridor", "hall": "Hall", "room": "Room"}
+
+
+@dataclass
+class SemanticMap:
+    """A place map joined to a reasoned knowledge base.
+
+    Attributes
+    ----------
+    places
+        The segmented places, doors and place graph.
+    kb
+        The knowledge base holding places, doors, signs, objects and people.
+    names
+        Place id -> the sign text that names it (signed places only).
+    kinds
+        Place id -> ontology class local name (every place).
+    sign_places
+        Index into the signs list -> the id of the place the sign labels (or None).
+    object_places
+        Index into the objects list -> the id of the place the object is in (or None).
+    timings_ms
+        Milliseconds spent segmenting, building and reasoning.
+    """
+
+    places: PlaceMap
+    kb: KnowledgeBase
+    names: dict[str, str]
+    kinds: dict[str, str]
+    sign_places: dict[int, str | None]
+    object_places: dict[int, str | None] = field(default_factory=dict)
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+
+def sign_place_id(index: int) -> str:
+    """The id of the place a sign anchors before the map is segmented (see :func:`live_kb`)."""
+    return f"S{index + 1}"
+
+
+def _place_kind(text: str, vocabulary: Vocabulary) -> str | None:
+    return vocabulary.place_class(text) if text else None
+
+
+def build_semantic_map(occupancy: OccupancyMap, signs: list[Mapping[str, Any]],
+                       objects: Iterable[Mapping[str, Any]] = (), *,
+                       ontology: str | Path | None = None, timetable: Any = None,
+                       vocabulary: Vocabulary | None = None,
+                       segment_options: Mapping[str, Any] | None = None,
+                       path: np.ndarray | None = None) -> SemanticMap:
+    """Segment the map into places, label them with the signs and reason over them.
+
+    Parameters
+    ----------
+    occupancy
+        The occupancy map to segment (the offline map in the main pipeline).
+    signs
+        Read signs as in ``signs.json``: ``{text, x, y, facing (deg), ...}``.
+    objects
+        Observed objects: ``{label, x, y, ...}`` (ontology class names as labels).
+    ontology
+        An ontology file to use instead of the packaged one.
+    timetable
+        A loaded :class:`semantic.timetable.Timetable`, or None.
+    vocabulary
+        The sign vocabulary that gives each sign text its place class.
+    segment_options
+        Keyword arguments for :func:`semantic.places.segment_places`.
+    path
+        The robot's path (N, 2+), which helps tell the corridor from the rooms.
+
+    Returns
+    -------
+    SemanticMap
+        With the knowledge base already reasoned.
+    """
+    vocabulary = vocabulary or load_vocabulary()
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    options = dict(segment_options or {})
+    if path is not None:
+        options["path"] = path
+    pm = segment_places(occupancy, **options)
+    sign_places = attach_signs(pm, list(signs))
+    timings["segment_ms"] = (time.perf_counter() - t0) * 1e3
+
+    t0 = time.perf_counter()
+    names: dict[str, str] = {}
+    kinds: dict[str, str] = {}
+    for i, place_id in sign_places.items():
+        if place_id is None:
+            continue
+        text = str(signs[i].get("text", ""))
+        kind = _place_kind(text, vocabulary)
+        if kind is not None and place_id not in kinds:
+            names[place_id] = text
+            kinds[place_id] = kind
+    for place in pm.places:
+        kinds.setdefault(place.id, UNSIGNED_KIND.get(place.kind_hint, "Room"))
+
+    kb = KnowledgeBase(ontology)
+    for place in pm.places:
+        kb.add_place(place.id, kinds[place.id], name=names.get(place.id),
+                     centroid=tuple(place.centroid), polygon=place.polygon, area=place.area)
+    for door in pm.doors:
+        kb.add_door(door.id, door.a, door.b, x=door.x, y=door.y, width=door.width)
+    for i, sign in enumerate(signs):
+        text = str(sign.get("text", ""))
+        kb.add_sign(f"sign_{i + 1}", text, x=float(sign["x"]), y=float(sign["y"]),
+                    facing_deg=float(sign.get("facing", 0.0)), place_id=sign_places.get(i),
+                    place_class=_place_kind(text, vocabulary))
+    object_places: dict[int, str | None] = {}
+    for i, obj in enumerate(objects):
+        place_id = pm.place_at(float(obj["x"]), float(obj["y"]))
+        object_places[i] = place_id
+        kb.add_object(f"object_{i + 1}", str(obj["label"]), x=float(obj["x"]),
+                      y=float(obj["y"]), place_id=place_id, observed=True)
+    if timetable is not None:
+        kb.add_timetable(timetable)
+    timings["build_ms"] = (time.perf_counter() - t0) * 1e3
+    t0 = time.perf_counter()
+    kb.reason()
+    timings["reason_ms"] = (time.perf_counter() - t0) * 1e3
+    return SemanticMap(places=pm, kb=kb, names=names, kinds=kinds, sign_places=sign_places,
+                       object_places=object_places, timings_ms=timings)
+
+
+def live_kb(signs: list[Mapping[str, Any]], objects: Iterable[Mapping[str, Any]] = (), *,
+            ontology: str | Path | None = None, timetable: Any = None,
+            vocabulary: Vocabulary | None = None) -> KnowledgeBase:
+    """The knowledge base while the robot runs, before there is a map to segment.
+
+    Each read sign stands for the place it labels (``S1``, ``S2``, ... placed
+    just behind the plate), so what the signs imply (the room's function, its
+    default equipment, who works there) is known as soon as a sign is read;
+    observed objects are given to the nearest sign's place within 4 m.
+    :func:`build_semantic_map` replaces these anchors with segmented places.
+
+    Parameters
+    ----------
+    signs, objects, ontology, timetable, vocabulary
+        As for :func:`build_semantic_map`.
+
+    Returns
+    -------
+    KnowledgeBase
+        Not yet reasoned: call ``reason()``.
+    """
+    import math
+    vocabulary = vocabulary or load_vocabulary()
+    kb = KnowledgeBase(ontology)
+    anchors = []
+    for i, sign in enumerate(signs):
+        text = str(sign.get("text", ""))
+        kind = _place_kind(text, vocabulary)
+        facing = math.radians(float(sign.get("facing", 0.0)))
+        x = float(sign["x"]) - 1.0 * math.cos(facing)  # behind the plate, in the room
+        y = float(sign["y"]) - 1.0 * math.sin(facing)
+        place_id = sign_place_id(i)
+        anchors.append((place_id, x, y))
+        kb.add_place(place_id, kind, name=text or None, centroid=(x, y))
+        kb.add_sign(f"sign_{i + 1}", text, x=float(sign["x"]), y=float(sign["y"]),
+                    facing_deg=float(sign.get("facing", 0.0)), place_id=place_id,
+                    place_class=kind)
+    for i, obj in enumerate(objects):
+        ox, oy = float(obj["x"]), float(obj["y"])
+        near = min(anchors, key=lambda a: math.hypot(a[1] - ox, a[2] - oy), default=None)
+        place_id = near[0] if near and math.hypot(near[1] - ox, near[2] - oy) < 4.0 else None
+        kb.add_object(f"object_{i + 1}", str(obj["label"]), x=ox, y=oy, place_id=place_id,
+                      observed=True)
+    if timetable is not None:
+        kb.add_timetable(timetable)
+    return kb
+
+
+def write_semantic_map(out_dir: str | Path, sm: SemanticMap, occupancy: OccupancyMap, *,
+                       signs: list[Mapping[str, Any]] | None = None,
+                       objects: list[Mapping[str, Any]] | None = None,
+                       picture: str = "maps/semantic.png") -> list[Path]:
+    """Write ``semantic_map.ttl``, ``places.geojson`` and the picture into ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir
+        The run's output folder.
+    sm
+        The semantic map.
+    occupancy
+        The map the places were segmented from (drawn underneath them).
+    signs, objects
+        Drawn on the picture when given.
+    picture
+        The picture's path relative to ``out_dir``.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    from .place_io import draw_place_map, write_places_geojson
+    out = Path(out_dir)
+    ttl = out / "semantic_map.ttl"
+    geojson = out / "places.geojson"
+    png = out / picture
+    sm.kb.serialize(ttl)
+    write_places_geojson(geojson, sm.places, names=sm.names, kinds=sm.kinds)
+    labels = {p.id: sm.names.get(p.id) or sm.kinds.get(p.id, "") for p in sm.places.places}
+    draw_place_map(png, sm.places, occupancy, labels=labels, signs=signs, objects=objects,
+                   title="semantic map: places, doors, signs and objects")
+    return [ttl, geojson, png]

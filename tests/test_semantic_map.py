@@ -1,0 +1,87 @@
+"""The semantic map assembled from a map, signs and objects; the `semmap sparql` command."""
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from blocks.maps.mapio import occupancy_map_from_world
+from semantic.semantic_map import build_semantic_map, live_kb, write_semantic_map
+from sim2d.worlds import world_path
+from sim2d.world import load_world
+
+
+@pytest.fixture(scope="module")
+def office():
+    world = load_world(world_path("office"))
+    signs = [{"text": s.text, "x": s.x, "y": s.y, "facing": math.degrees(s.facing)} for s in world.signs]
+    return world, occupancy_map_from_world(world), signs
+
+
+@pytest.fixture(scope="module")
+def office_map(office):
+    world, occupancy, signs = office
+    objects = [{"label": "Shredder", "x": 27.5, "y": 3.2}]  # in the kitchen, not the mail room
+    return build_semantic_map(occupancy, signs, objects)
+
+
+def _place_named(sm, text):
+    ids = [pid for pid, name in sm.names.items() if name == text]
+    assert len(ids) == 1, f"{text}: {ids}"
+    return ids[0]
+
+
+def test_every_signed_room_becomes_a_place_of_its_kind(office, office_map):
+    _, _, signs = office
+    assert sorted(office_map.names.values()) == sorted(s["text"] for s in signs)
+    assert office_map.kinds[_place_named(office_map, "MAIL ROOM")] == "MailRoom"
+    assert office_map.kinds[_place_named(office_map, "OFFICE 101")] == "Office"
+    corridors = [pid for pid, kind in office_map.kinds.items() if kind == "Corridor"]
+    assert len(corridors) == 1
+
+
+def test_the_semantic_map_answers_from_signs_defaults_and_observations(office_map):
+    kb = office_map.kb
+    manager = _place_named(office_map, "MANAGER")
+    assert kb.works_in("Manager") == [manager]
+    mail_room = _place_named(office_map, "MAIL ROOM")
+    kitchen = _place_named(office_map, "KITCHEN")
+    assert ("Fridge", "default") in kb.equipment_in(kitchen)  # the kitchen's function implies it
+    # the mail room's default shredder gives way to the one seen in the kitchen
+    assert ("Shredder", "default") not in kb.equipment_in(mail_room)
+    assert kb.where_is("Shredder") == [(kitchen, "observed")]
+    assert kb.connected(mail_room, _place_named(office_map, "LAB"))
+
+
+def test_the_outputs_are_written(tmp_path, office, office_map):
+    _, occupancy, signs = office
+    written = write_semantic_map(tmp_path, office_map, occupancy, signs=signs)
+    assert all(p.exists() and p.stat().st_size > 0 for p in written)
+    geo = json.loads((tmp_path / "places.geojson").read_text())
+    names = {f["properties"].get("name") for f in geo["features"]}
+    assert "MAIL ROOM" in names
+    import rdflib
+    g = rdflib.Graph().parse(tmp_path / "semantic_map.ttl", format="turtle")
+    assert len(g) > 100
+
+
+def test_the_live_knowledge_base_knows_a_room_as_soon_as_its_sign_is_read():
+    kb = live_kb([{"text": "MANAGER", "x": 8.35, "y": 5.1, "facing": 90.0}])
+    kb.reason()
+    assert len(kb.works_in("Manager")) == 1
+
+
+def test_sparql_command_answers_and_reports_bad_queries(tmp_path, office, office_map, capsys):
+    from blocks.cli import main
+    _, occupancy, signs = office
+    write_semantic_map(tmp_path, office_map, occupancy, signs=signs)
+    query = "SELECT ?name WHERE { ?p indoor:name ?name } ORDER BY ?name"
+    assert main(["sparql", str(tmp_path), query, "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert ["MAIL ROOM"] in rows
+    assert main(["sparql", str(tmp_path), "SELECT ?x WHERE { ?x"]) != 0
+    err = capsys.readouterr().err
+    assert "SPARQL" in err and "Traceback" not in err
+    assert main(["sparql", str(tmp_path / "nowhere"), query]) != 0
+    assert "semantic map" in capsys.readouterr().err
