@@ -24,13 +24,16 @@ venv-dev: $(VENV)/.installed-dev
 
 # The main job on the default world (office): exploration by fuzzy perimeter
 # following until the robot is back at its start, the online and offline maps,
-# and the door signs read on the way and placed on the map (the hybrid map).
+# the door signs read on the way and placed on the map (the hybrid map), and
+# the semantic map (places, the ontology's knowledge, objects).
 demo: venv
 	$(BIN)/semmap run graphs/semantic_mapping.yaml --out $(OUT) --record follower.FrontCP --record follower.RightCP
 	$(BIN)/semmap render $(OUT) --gif
 	$(BIN)/semmap graph graphs/semantic_mapping.yaml --format png -o $(OUT)/graph.png
-	@echo "Outputs are in $(OUT)/: signs.json (the signs read, placed on the map) and"
-	@echo "maps/hybrid.png (them drawn on the offline map), maps/ (online and offline maps,"
+	@echo "Outputs are in $(OUT)/: semantic_map.ttl (the semantic map: places, kinds,"
+	@echo "connectivity, signs, objects, people; query it with 'semmap sparql $(OUT) QUERY'),"
+	@echo "places.geojson and maps/semantic.png (the places), signs.json (the signs read,"
+	@echo "placed on the map) and maps/hybrid.png, objects/ (recognised objects), maps/ (online and offline maps,"
 	@echo "map_server YAML + PGM + PNG), signs/captures/ (the zoomed captures), path.png and"
 	@echo "run.gif (the exploration), velocity_plot.png, graph.png (the pipeline),"
 	@echo "trajectory.csv, sonar.npz, probes.npz and run.json (scores, stops, timings)."
