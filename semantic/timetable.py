@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from blocks.core.errors import SemmapError
-from blocks.core.yamlsrc import line_of, load_yaml_file
+from blocks.core.yamlsrc import line_of, load_versioned_mapping
 
 __all__ = ["DAYS", "Person", "Slot", "Timetable", "TimetableError", "load_timetable",
            "EXAMPLES"]
@@ -127,27 +127,10 @@ def load_timetable(path: str | Path) -> Timetable:
         in ``people``); the message names the file, line and field.
     """
     path = Path(path)
-    try:
-        doc = load_yaml_file(path)
-    except SemmapError as exc:
-        hint = exc.hint
-        if exc.message == "file not found":
-            hint = ("Give the path of a timetable YAML (see sim2d/worlds/timetables/office.yaml "
-                    "for an example).")
-        raise TimetableError(exc.message, file=exc.file or path, line=exc.line,
-                             hint=hint) from None
-    if not isinstance(doc, Mapping):
-        raise TimetableError("a timetable must be a YAML mapping with 'people' and 'slots' lists",
-                             file=path, line=line_of(doc))
-    for key in doc:
-        if key not in ("version", "people", "slots"):
-            raise TimetableError(f"unknown top-level field {key!r}", file=path,
-                                 line=line_of(doc, key), field=str(key),
-                                 hint="Known fields: version, people, slots.")
-    if doc.get("version", 1) != 1:
-        raise TimetableError(f"unsupported timetable version {doc.get('version')!r}", file=path,
-                             line=line_of(doc, "version"), field="version",
-                             hint="This reader understands version 1.")
+    doc = load_versioned_mapping(
+        path, TimetableError, what="a timetable", fields=("people", "slots"),
+        missing_hint="Give the path of a timetable YAML (see "
+                     "sim2d/worlds/timetables/office.yaml for an example).")
     people_raw = doc.get("people", [])
     slots_raw = doc.get("slots", [])
     for key, value in (("people", people_raw), ("slots", slots_raw)):

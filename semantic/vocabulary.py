@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from blocks.core.errors import SemmapError
-from blocks.core.yamlsrc import line_of, load_yaml_file
+from blocks.core.yamlsrc import line_of, load_versioned_mapping
 
 __all__ = [
     "DEFAULT_PATH",
@@ -193,27 +193,10 @@ def load_vocabulary(path: str | Path | None = None) -> Vocabulary:
         message names the file, the line and the field.
     """
     path = Path(path) if path is not None else DEFAULT_PATH
-    try:
-        doc = load_yaml_file(path)
-    except SemmapError as exc:
-        hint = exc.hint
-        if exc.message == "file not found":
-            hint = ("Give the path of a vocabulary YAML, or none for the packaged "
-                    "semantic/vocabulary.yaml.")
-        raise VocabularyError(exc.message, file=exc.file or path, line=exc.line,
-                              hint=hint) from None
-    if not isinstance(doc, Mapping):
-        raise VocabularyError("a vocabulary file must be a YAML mapping with a 'places' list",
-                              file=path, line=line_of(doc))
-    for key in doc:
-        if key not in ("version", "places"):
-            raise VocabularyError(f"unknown top-level field {key!r}", file=path,
-                                  line=line_of(doc, key), field=str(key),
-                                  hint="Known fields: version, places.")
-    if doc.get("version", 1) != 1:
-        raise VocabularyError(f"unsupported vocabulary version {doc.get('version')!r}",
-                              file=path, line=line_of(doc, "version"), field="version",
-                              hint="This reader understands version 1.")
+    doc = load_versioned_mapping(
+        path, VocabularyError, what="a vocabulary file", fields=("places",),
+        missing_hint="Give the path of a vocabulary YAML, or none for the packaged "
+                     "semantic/vocabulary.yaml.")
     places = doc.get("places")
     if not isinstance(places, list) or not places:
         raise VocabularyError("'places' must be a non-empty list of place entries", file=path,

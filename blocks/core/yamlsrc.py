@@ -6,7 +6,7 @@ from typing import Any
 
 import yaml
 
-from .errors import GraphError
+from .errors import GraphError, SemmapError
 
 
 class LineDict(dict):
@@ -123,3 +123,50 @@ def load_yaml_file(path: str | Path) -> Any:
     except (OSError, UnicodeDecodeError) as exc:
         raise GraphError(f"cannot read the file: {exc}", file=path) from None
     return load_yaml_text(text, path)
+
+
+def load_versioned_mapping(path: str | Path, error: type[SemmapError], *, what: str,
+                           fields: tuple[str, ...], missing_hint: str) -> Any:
+    """Read a data file that is a YAML mapping of known top-level fields plus ``version: 1``.
+
+    The vocabulary, the object catalogue and timetables share this shape; each
+    reports problems with its own error class, so the message says which kind
+    of file is wrong, where, and how to fix it.
+
+    Parameters
+    ----------
+    path
+        The YAML file.
+    error
+        The :class:`SemmapError` subclass to raise.
+    what
+        The file's kind with its article, for messages ("a timetable").
+    fields
+        The known top-level fields besides ``version``.
+    missing_hint
+        How to fix a missing file.
+
+    Returns
+    -------
+    LineDict
+        The parsed mapping (lines available through :func:`line_of`).
+    """
+    path = Path(path)
+    try:
+        doc = load_yaml_file(path)
+    except SemmapError as exc:
+        hint = missing_hint if exc.message == "file not found" else exc.hint
+        raise error(exc.message, file=exc.file or path, line=exc.line, hint=hint) from None
+    listed = " and ".join(f"'{f}'" for f in fields)
+    if not isinstance(doc, dict):
+        raise error(f"{what} must be a YAML mapping with {listed}", file=path,
+                    line=line_of(doc))
+    for key in doc:
+        if key != "version" and key not in fields:
+            raise error(f"unknown top-level field {key!r}", file=path, line=line_of(doc, key),
+                        field=str(key), hint=f"Known fields: version, {', '.join(fields)}.")
+    if doc.get("version", 1) != 1:
+        raise error(f"unsupported {what.split(' ', 1)[-1]} version {doc.get('version')!r}",
+                    file=path, line=line_of(doc, "version"), field="version",
+                    hint="This reader understands version 1.")
+    return doc

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from blocks.core.errors import SemmapError
-from blocks.core.yamlsrc import line_of, load_yaml_file
+from blocks.core.yamlsrc import line_of, load_versioned_mapping
 
 __all__ = [
     "DEFAULT_PATH",
@@ -162,27 +162,10 @@ def load_catalogue(path: str | Path | None = None, *, check_images: bool = True)
         message names the file, the line and the field.
     """
     path = Path(path) if path is not None else DEFAULT_PATH
-    try:
-        doc = load_yaml_file(path)
-    except SemmapError as exc:
-        hint = exc.hint
-        if exc.message == "file not found":
-            hint = ("Give the path of an object catalogue YAML, or none for the packaged "
-                    "semantic/objects/catalogue.yaml.")
-        raise CatalogueError(exc.message, file=exc.file or path, line=exc.line,
-                             hint=hint) from None
-    if not isinstance(doc, Mapping):
-        raise CatalogueError("an object catalogue must be a YAML mapping with an 'objects' list",
-                             file=path, line=line_of(doc))
-    for key in doc:
-        if key not in ("version", "objects"):
-            raise CatalogueError(f"unknown top-level field {key!r}", file=path,
-                                 line=line_of(doc, key), field=str(key),
-                                 hint="Known fields: version, objects.")
-    if doc.get("version", 1) != 1:
-        raise CatalogueError(f"unsupported catalogue version {doc.get('version')!r}",
-                             file=path, line=line_of(doc, "version"), field="version",
-                             hint="This reader understands version 1.")
+    doc = load_versioned_mapping(
+        path, CatalogueError, what="an object catalogue", fields=("objects",),
+        missing_hint="Give the path of an object catalogue YAML, or none for the packaged "
+                     "semantic/objects/catalogue.yaml.")
     objects = doc.get("objects")
     if not isinstance(objects, list) or not objects:
         raise CatalogueError("'objects' must be a non-empty list of object entries", file=path,
