@@ -27,6 +27,8 @@ Ids given by the caller ("P3", "door_2", "sign_0") become ``map:`` IRIs
 """
 from __future__ import annotations
 
+import functools
+
 import datetime as dt
 import re
 import time
@@ -44,7 +46,7 @@ from rdflib.namespace import SKOS
 from blocks.core.atomic import atomic_write_text
 from blocks.core.errors import SemmapError
 from semantic import rules as R
-from semantic.lexicon import Concept, Lexicon, build_lexicon
+from semantic.lexicon import Concept, build_lexicon
 from semantic.rules import INDOOR, MAP, Facts, RuleContext, TBox
 from semantic.timetable import DAYS, Timetable
 from semantic.vocabulary import Vocabulary, compact, load_vocabulary
@@ -87,6 +89,27 @@ class ReasoningStats:
     @property
     def ms_total(self) -> float:
         return self.ms_owl + self.ms_rules
+
+
+def _mtime(path: Path) -> float:
+    """The file's modification time (0 when missing: load_ontology then reports it)."""
+    try:
+        return path.stat().st_mtime
+    except OSError:
+        return 0.0
+
+
+@functools.lru_cache(maxsize=8)
+def _ontology_parts(path: str, mtime: float) -> tuple:
+    """What a knowledge base derives from its ontology, parsed and indexed once per file
+    version: parsing and indexing take ~140 ms, and the live knowledge block builds a
+    fresh base for every new sign. The parts are only ever read."""
+    del mtime  # part of the cache key: an edited file is read again
+    ontology = load_ontology(path)
+    owl_tbox = [t for t in ontology
+                if t[1] not in _NOT_FOR_OWL and not isinstance(t[2], Literal)
+                and t != (INDOOR.connectedTo, RDF.type, OWL.TransitiveProperty)]
+    return ontology, TBox(ontology), build_lexicon(ontology), owl_tbox, frozenset(ontology)
 
 
 def load_ontology(path: str | Path | None = None) -> rdflib.Graph:
@@ -166,14 +189,9 @@ class KnowledgeBase:
     def __init__(self, ontology: str | Path | None = None,
                  vocabulary: Vocabulary | None = None) -> None:
         self.ontology_path = Path(ontology) if ontology is not None else DEFAULT_ONTOLOGY
-        self.ontology = load_ontology(self.ontology_path)
+        parts = _ontology_parts(str(self.ontology_path.resolve()), _mtime(self.ontology_path))
+        self.ontology, self.tbox, self.lexicon, self._owl_tbox, self._ontology_set = parts
         self.vocabulary = vocabulary if vocabulary is not None else load_vocabulary()
-        self.tbox = TBox(self.ontology)
-        self.lexicon: Lexicon = build_lexicon(self.ontology)
-        self._owl_tbox = [t for t in self.ontology
-                          if t[1] not in _NOT_FOR_OWL and not isinstance(t[2], Literal)
-                          and t != (INDOOR.connectedTo, RDF.type, OWL.TransitiveProperty)]
-        self._ontology_set = set(self.ontology)
         self._abox: set[tuple] = set()  # asserted map facts
         self._polygons: dict[URIRef, np.ndarray] = {}
         self._slots: list[tuple[URIRef, URIRef, Any]] = []  # (slot, person, timetable Slot)

@@ -126,7 +126,7 @@ def build_semantic_map(occupancy: OccupancyMap, signs: list[Mapping[str, Any]],
     for place in pm.places:
         kinds.setdefault(place.id, UNSIGNED_KIND.get(place.kind_hint, "Room"))
 
-    kb = KnowledgeBase(ontology)
+    kb = KnowledgeBase(ontology, vocabulary=vocabulary)
     for place in pm.places:
         kb.add_place(place.id, kinds[place.id], name=names.get(place.id),
                      centroid=tuple(place.centroid), polygon=place.polygon, area=place.area)
@@ -176,7 +176,7 @@ def live_kb(signs: list[Mapping[str, Any]], objects: Iterable[Mapping[str, Any]]
     """
     import math
     vocabulary = vocabulary or load_vocabulary()
-    kb = KnowledgeBase(ontology)
+    kb = KnowledgeBase(ontology, vocabulary=vocabulary)
     anchors = []
     for i, sign in enumerate(signs):
         text = str(sign.get("text", ""))

@@ -537,17 +537,11 @@ def _plate_views(world: World, cam_pose, tilt: float, zoom: float, spec: CameraS
                 t_plate = (sx * ty - sy * tx) / (dx * ty - dy * tx)
             tol = _tolerance_along_ray(np.abs(dx * normal[0] + dy * normal[1]))
             columns[lo:hi + 1] = ~(wall_t[lo:hi + 1] < t_plate - tol)
-        span = max(float(u.max() - u.min()), 1.0)
-        rows_in = max(0.0, min(v.max(), height - 0.5) - max(v.min(), -0.5))
-        fraction = min(1.0, columns.sum() / span) * min(1.0, rows_in / max(v.max() - v.min(), 1.0))
-        if fraction <= 0:
+        footprint = _footprint(u, v, columns, height)
+        if footprint is None:
             continue
-        visible_cols = np.flatnonzero(columns)
-        bbox = (int(visible_cols.min()), int(max(0, math.floor(v.min() + 0.5))),
-                int(visible_cols.max()), int(min(height - 1, math.floor(v.max() + 0.5))))
-        c, s = math.cos(yaw), math.sin(yaw)
-        rel = (sign.x - px, sign.y - py)
-        bearing = math.atan2(-s * rel[0] + c * rel[1], c * rel[0] + s * rel[1])
+        fraction, bbox = footprint
+        bearing = _bearing(yaw, sign.x - px, sign.y - py)
         _, _, centre_depth = project_points(np.array([[sign.x, sign.y, sign.z]]), cam_pose,
                                             tilt, zoom, spec)
         views.append(_PlateView(
@@ -556,6 +550,28 @@ def _plate_views(world: World, cam_pose, tilt: float, zoom: float, spec: CameraS
             depth=float(centre_depth[0]), columns=columns, visible_fraction=float(fraction),
             bbox=bbox))
     return views
+
+
+def _footprint(u: np.ndarray, v: np.ndarray, columns: np.ndarray,
+               height: int) -> tuple[float, tuple[int, int, int, int]] | None:
+    """How much of a projected quad shows (unoccluded columns x rows in the image) and the
+    pixel box of what shows; None when nothing does. Plates and objects share it, so the
+    ground truth of both is judged alike."""
+    span = max(float(u.max() - u.min()), 1.0)
+    rows_in = max(0.0, min(v.max(), height - 0.5) - max(v.min(), -0.5))
+    fraction = min(1.0, columns.sum() / span) * min(1.0, rows_in / max(v.max() - v.min(), 1.0))
+    if fraction <= 0:
+        return None
+    visible_cols = np.flatnonzero(columns)
+    bbox = (int(visible_cols.min()), int(max(0, math.floor(v.min() + 0.5))),
+            int(visible_cols.max()), int(min(height - 1, math.floor(v.max() + 0.5))))
+    return fraction, bbox
+
+
+def _bearing(yaw: float, dx: float, dy: float) -> float:
+    """The bearing (rad, CCW from the optical axis) of a world offset seen at ``yaw``."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return math.atan2(-s * dx + c * dy, c * dx + s * dy)
 
 
 def visible_signs(world: World, cam_pose, tilt: float, zoom: float,
@@ -714,17 +730,11 @@ def _object_views(world: World, cam_pose, tilt: float, zoom: float, spec: Camera
             with np.errstate(divide="ignore", invalid="ignore"):
                 t_obj = (sx * ty - sy * tx) / (dx * ty - dy * tx)
             columns[lo:hi + 1] = ~(wall_t[lo:hi + 1] < t_obj - OBJECT_TOLERANCE)
-        span = max(float(u.max() - u.min()), 1.0)
-        rows_in = max(0.0, min(v.max(), height - 0.5) - max(v.min(), -0.5))
-        fraction = min(1.0, columns.sum() / span) * min(1.0, rows_in / max(v.max() - v.min(), 1.0))
-        if fraction <= 0:
+        footprint = _footprint(u, v, columns, height)
+        if footprint is None:
             continue
-        visible_cols = np.flatnonzero(columns)
-        bbox = (int(visible_cols.min()), int(max(0, math.floor(v.min() + 0.5))),
-                int(visible_cols.max()), int(min(height - 1, math.floor(v.max() + 0.5))))
-        c, s = math.cos(yaw), math.sin(yaw)
-        rel = (ox - px, oy - py)
-        bearing = math.atan2(-s * rel[0] + c * rel[1], c * rel[0] + s * rel[1])
+        fraction, bbox = footprint
+        bearing = _bearing(yaw, ox - px, oy - py)
         centre_z = entry.elevation + entry.height / 2
         _, _, centre_depth = project_points(np.array([[ox, oy, centre_z]]), cam_pose,
                                             tilt, zoom, spec)
