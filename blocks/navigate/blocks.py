@@ -196,3 +196,161 @@ class Goto(Block):
         self.report("goals_reached", len(visit.reached))
         self.report("goals_failed", len(visit.failed))
         self.report("goals", [r.as_dict() for r in visit.results])
+
+
+@block("navigate.room_visits", category="navigate")
+class RoomVisits(Block):
+    """Visits the room behind each sign read: in through its door, a look around, and back.
+
+    A higher-priority behaviour in front of the explorer (subsumption): while
+    no visit is under way, ``v_in`` and ``w_in`` (the explorer's commands) pass
+    through.  When a new sign arrives on ``signs``, its door is sought on a
+    local map of the last ``window`` seconds of sonar scans (the offline
+    map's reading model, odometry frame); once found, the block drives
+    instead: in along the door's axis, 360 degrees, again deeper in if the
+    room allows, back to where it left the explorer, facing the same way.
+    ``hold`` (the sign seeker's stop) pauses it, and ``done`` holds the
+    explorer's ``done_in`` back until no visit is under way or due.  See
+    :mod:`blocks.navigate.rooms`.  run.json gets each room's outcome, the
+    time spent and the map builds.
+    """
+
+    inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
+                                 doc="the robot's pose (odometry: the frame of the local maps)"),
+              "ranges": Port.array("float64", (16,), unit="m", frame="robot",
+                                   doc="sonar ranges, in the robot file's order"),
+              "signs": Port(kind="handle", required=False, default=None,
+                            doc="the signs read (current() gives {text, x, y, facing} dicts)"),
+              "v_in": Port.scalar("float64", unit="m/s", doc="the explorer's translation"),
+              "w_in": Port.scalar("float64", unit="rad/s", doc="the explorer's rotation"),
+              "hold": Port.scalar("bool", required=False, default=False,
+                                  doc="pause (e.g. the sign seeker's stop)"),
+              "done_in": Port.scalar("bool", required=False, default=False,
+                                     doc="the explorer is done (e.g. its loop closed)")}
+    outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity"),
+               "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity (CCW +)"),
+               "visiting": Port.scalar("bool", doc="true while a visit drives the robot"),
+               "done": Port.scalar("bool", doc="done_in, held back while a visit is under way "
+                                               "or a read sign's door is still sought")}
+    params = {
+        "enabled": Param(bool, True, "visit rooms; false passes the explorer's commands through"),
+        "robot": Param(str, "atrv_mini", "robot model (sonar and velocity limits)"),
+        "radius": Param(float, 0.36, "obstacle inflation of the A* legs (the door is crossed "
+                                     "straight along its axis)", unit="m", min=0.05),
+        "cruise": Param(float, 0.45, "speed on the legs", unit="m/s", min=0.01),
+        "map_resolution": Param(float, 0.025, "cell size of the local maps", unit="m",
+                                min=0.01, max=0.2),
+        "window": Param(float, 30.0, "seconds of scans before a visit its maps include",
+                        unit="s", min=1.0),
+        "map_radius": Param(float, 6.0, "the local maps hold the scans taken this close to "
+                                        "the sign or door", unit="m", min=1.0),
+        "half_width": Param(float, 2.2, "how far along the wall from a sign its door may be",
+                            unit="m", min=0.1),
+        "depth_min": Param(float, 1.0, "look around at least this far behind the wall, or "
+                                       "skip the room", unit="m", min=0.3),
+        "depth_max": Param(float, 2.2, "...and at most this far on the first look", unit="m",
+                           min=0.3),
+        "looks": Param(int, 3, "at most this many looks around per room", min=1),
+        "look_again": Param(float, 1.0, "a further look is at least this far from the last",
+                            unit="m", min=0.1),
+        "min_gain": Param(float, 1.5, "...and sees at least this much unseen floor of the room",
+                          unit="m^2", min=0.0),
+        "give_up_distance": Param(float, 5.0, "skip a room whose door is not found by the time "
+                                              "the robot is this far from its sign", unit="m",
+                                  min=0.5),
+        "leg_timeout": Param(float, 60.0, "seconds a leg may take", unit="s", min=1.0),
+        "spin_rate": Param(float, 1.2, "turn rate of the look-around", unit="rad/s", min=0.05),
+    }
+
+    def setup(self) -> None:
+        from sim2d.robot import load_robot
+
+        from .rooms import RoomVisitParams
+        if self.p.depth_max < self.p.depth_min:
+            raise BlockError(f"depth_max ({self.p.depth_max:g}) is below depth_min "
+                             f"({self.p.depth_min:g})", node=self.name, field="param 'depth_max'",
+                             hint="Make depth_max at least depth_min.")
+        spec = load_robot(self.p.robot)
+        self._mounts = np.asarray(spec.sonar_mounts, dtype=np.float64)
+        self._cone, self._max_range = spec.sonar.cone_deg, spec.sonar.max_range
+        self._pursuit = PursuitParams(cruise=min(self.p.cruise, spec.limits.max_speed),
+                                      max_speed=spec.limits.max_speed,
+                                      max_turn_rate=spec.limits.max_turn_rate,
+                                      lookahead=0.5, lookahead_min=0.25, goal_tolerance=0.1)
+        self._params = RoomVisitParams(half_width=self.p.half_width, depth_min=self.p.depth_min,
+                                       depth_max=self.p.depth_max, looks=self.p.looks,
+                                       look_again=self.p.look_again, min_gain=self.p.min_gain,
+                                       give_up_distance=self.p.give_up_distance,
+                                       window=self.p.window, radius=self.p.radius,
+                                       leg_timeout=self.p.leg_timeout,
+                                       spin_rate=self.p.spin_rate)
+
+    def reset(self) -> None:
+        from .rooms import RoomVisitor
+        self._times: list[float] = []
+        self._poses: list[np.ndarray] = []
+        self._scans: list[np.ndarray] = []
+        self._builds: list[float] = []
+        self._version: Any = None
+        self.visitor = RoomVisitor(self._map_since, self._params, self._pursuit)
+
+    def _map_since(self, since: float, near: tuple[float, float]):
+        """The offline map (no drift fix) of the scans since ``since`` (s) taken within
+        ``map_radius`` of ``near``, and their positions."""
+        import bisect
+        import time
+
+        from blocks.maps.offline import OfflineMapParams, build_offline_map
+        lo = bisect.bisect_left(self._times, since)
+        poses = np.array(self._poses[lo:])
+        if len(poses):
+            close = np.hypot(poses[:, 0] - near[0], poses[:, 1] - near[1]) <= self.p.map_radius
+            poses, scans = poses[close], np.array(self._scans[lo:])[close]
+        if len(poses) < 2:
+            return None
+        t0 = time.perf_counter()
+        built = build_offline_map(poses, scans, self._mounts,
+                                  cone_deg=self._cone, max_range=self._max_range,
+                                  params=OfflineMapParams(resolution=self.p.map_resolution,
+                                                          correct_drift=False))
+        self._builds.append(time.perf_counter() - t0)
+        return built.map, poses[:, :2]
+
+    def _take_signs(self, signs: Any) -> None:
+        from .rooms import SignRef
+        version = getattr(signs, "version", None)
+        if version is not None and version == self._version:
+            return
+        self._version = version
+        for sign in signs.current():
+            try:
+                self.visitor.add_sign(SignRef.from_dict(sign), self.ctx.time)
+            except (KeyError, TypeError, ValueError):
+                raise BlockError(f"a sign on the 'signs' input is not {{text, x, y, facing}}: "
+                                 f"{sign!r}", node=self.name, field="input 'signs'",
+                                 hint="Connect signs.correlate's 'signs' output.") from None
+
+    def step(self, pose: np.ndarray, ranges: np.ndarray, v_in: float, w_in: float,
+             signs: Any = None, hold: bool = False, done_in: bool = False) -> dict[str, Any]:
+        if not self.p.enabled:
+            return {"v": float(v_in), "w": float(w_in), "visiting": False,
+                    "done": bool(done_in)}
+        self._times.append(self.ctx.time)
+        self._poses.append(np.array(pose[:3], dtype=np.float64))
+        self._scans.append(np.array(ranges, dtype=np.float64))
+        if signs is not None:
+            self._take_signs(signs)
+        command = self.visitor.step(self.ctx.time, pose, self.ctx.dt, hold=bool(hold))
+        done = bool(done_in) and not self.visitor.visiting and not self.visitor.pending
+        if command is None:
+            return {"v": float(v_in), "w": float(w_in), "visiting": False, "done": done}
+        return {"v": command[0], "w": command[1], "visiting": True, "done": done}
+
+    def finish(self) -> None:
+        if not self.p.enabled:
+            return
+        for key, value in self.visitor.summary().items():
+            self.report(key, value)
+        self.report("map_builds", len(self._builds))
+        if self._builds:
+            self.report("map_build_ms_mean", round(1000 * float(np.mean(self._builds)), 1))

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["NavGrid", "inflate", "inflate_occupied"]
+__all__ = ["NavGrid", "inflate", "inflate_occupied", "unblock_traversed"]
 
 #: Radius (m) of the circle around the ATRV-Mini's 0.5 x 0.5 m body (0.354), rounded up.
 DEFAULT_RADIUS = 0.36
@@ -258,3 +258,48 @@ def inflate(occupancy_map: Any, *, radius: float = DEFAULT_RADIUS, unknown: str 
     return inflate_occupied(obstacle, occupancy_map.resolution, occupancy_map.origin,
                             radius=radius, safe_clearance=safe_clearance,
                             clearance_weight=clearance_weight, extra_cost=extra)
+
+
+def unblock_traversed(grid: NavGrid, points: np.ndarray, *, width: float | None = None,
+                      cost: float | None = None) -> NavGrid:
+    """The grid with the cells the robot's centre has been on made passable.
+
+    Why: where the robot has driven, it fits, whatever the map says.  A sonar
+    map draws a door's jambs thicker than they are, the more so the more
+    readings it holds, so a door the robot came in by can look closed by the
+    time it wants to leave; its own track is the proof that it is open.
+
+    Parameters
+    ----------
+    points
+        (N, 2) world positions the robot's centre has been at (sampled
+        densely enough that consecutive points are at most ``width`` apart).
+    width
+        Radius (m) around each point that is unblocked; default 1.5 cells.
+    cost
+        Cost of entering an unblocked cell that was blocked; default the
+        dearest free cell's, so the planner keeps to the track only where the
+        map leaves no other way.
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    width = 1.5 * grid.resolution if width is None else float(width)
+    k = int(math.ceil(width / grid.resolution))
+    offsets = [(dr, dc) for dr in range(-k, k + 1) for dc in range(-k, k + 1)
+               if (dr * dr + dc * dc) * grid.resolution ** 2 <= width * width]
+    rows, cols = grid.cells_of(points)
+    h, w = grid.shape
+    track = np.zeros(grid.shape, dtype=bool)
+    for dr, dc in offsets:
+        r, c = rows + dr, cols + dc
+        ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        track[r[ok], c[ok]] = True
+    opened = track & grid.blocked
+    if not opened.any():
+        return grid
+    finite = grid.cost[~grid.blocked]
+    fill = float(cost) if cost is not None else float(finite.max()) if finite.size else 1.0
+    new_cost = grid.cost.copy()
+    new_cost[opened] = fill
+    return NavGrid(blocked=grid.blocked & ~opened, clearance=grid.clearance, cost=new_cost,
+                   resolution=grid.resolution, origin=grid.origin, radius=grid.radius,
+                   safe_clearance=grid.safe_clearance)

@@ -22,7 +22,9 @@ class Recognizer(Block):
 
     Output ``objects``: this frame's observations, a list of dicts {label, x, y
     (map frame, from ``pose``), confidence, tick, bearing (rad), range (m)}.
-    At the end it reports the merged objects (label, position, count) and,
+    With the offline map's handle on ``map``, the objects are re-placed at the
+    end from the drift-corrected poses, as the signs are; ``current()`` then
+    gives those.  At the end it reports the merged objects (label, position, count) and,
     with ``visible`` connected, true/false recognitions, precision and
     recall; it saves up to ``keep_frames`` annotated frames to ``DIR/objects/``.
     """
@@ -36,6 +38,9 @@ class Recognizer(Block):
         "pan": Port.scalar("float64", unit="rad", doc="the head's pan for this frame"),
         "visible": Port.message(required=False,
                                 doc="ground truth objects in view (scoring only)"),
+        "map": Port(kind="handle", required=False, default=None,
+                    doc="the offline map: at the end, objects are re-placed on its "
+                        "drift-corrected path (corrected_pose(tick, pose))"),
     }
     outputs = {"objects": Port.message(doc="list of observations {label, x, y, confidence, "
                                            "tick, bearing, range} of this frame"),
@@ -68,6 +73,8 @@ class Recognizer(Block):
     def reset(self) -> None:
         self._frames = self._looked = 0
         self._merged: list[dict[str, Any]] = []
+        self._sightings: list[tuple[int, np.ndarray, float, Any]] = []  # tick, pose, pan, s
+        self._map: Any = None
         self._tp = self._fp = self._fn = 0
         self._saved = 0
         self._ms: list[float] = []
@@ -78,10 +85,12 @@ class Recognizer(Block):
         return self.merged
 
     def step(self, image: np.ndarray, camera: Any, pose: np.ndarray, pan: float,
-             visible: list | None = None) -> dict[str, Any]:
+             visible: list | None = None, map: Any = None) -> dict[str, Any]:  # noqa: A002
         import time
 
         from semantic.recognise import match_sightings, object_world_position
+        if map is not None:
+            self._map = map
         self._frames += 1
         if camera is None or (self._frames - 1) % self.p.every_nth:
             return {"objects": [], "count": 0, "seen": self}
@@ -95,6 +104,8 @@ class Recognizer(Block):
             obs = {"label": s.label, "x": x, "y": y, "confidence": s.score,
                    "tick": self.ctx.tick, "bearing": s.bearing, "range": s.range}
             observations.append(obs)
+            self._sightings.append((self.ctx.tick, np.array(pose[:3], dtype=np.float64),
+                                    float(pan), s))
             self._merge(obs)
             self.version += 1
         if visible is not None:
@@ -143,7 +154,20 @@ class Recognizer(Block):
         """The objects seen so far (label, x, y, count, confidence, first_tick)."""
         return [dict(m) for m in self._merged]
 
+    def _replace_on_corrected_path(self) -> None:
+        """Re-place every sighting from its drift-corrected pose and merge them again."""
+        from semantic.recognise import object_world_position
+        corrected = getattr(self._map, "corrected_pose", None)
+        if corrected is None or not self._sightings:
+            return
+        self._merged = []
+        for tick, pose, pan, s in self._sightings:
+            x, y = object_world_position(s, corrected(tick, pose), pan, self._mount)
+            self._merge({"label": s.label, "x": x, "y": y, "confidence": s.score, "tick": tick})
+        self.version += 1
+
     def finish(self) -> None:
+        self._replace_on_corrected_path()
         self.report("frames", self._frames)
         self.report("frames_examined", self._looked)
         self.report("objects", len(self._merged))

@@ -1,0 +1,272 @@
+"""Room visits: the door finder, the next-best-view rule, the track that keeps a door open,
+the visitor in closed loop in the simulated office, and the block's contract."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from blocks.core.block import RunContext
+from blocks.core.errors import BlockError
+from blocks.maps.mapio import OccupancyMap
+from blocks.navigate.grid import inflate, inflate_occupied, unblock_traversed
+from blocks.navigate.planner import PlanningError, plan
+from blocks.navigate.rooms import (DoorEstimate, RoomVisitor, SignRef, find_door, free_run,
+                                   next_look, room_box, unseen_nearby)
+from sim2d.robot import load_robot
+from sim2d.simulation import Simulation
+from sim2d.world import load_world
+from sim2d.worlds import world_path
+
+RES = 0.025
+FREE, OCC, UNKNOWN = 0.0, 1.0, np.nan
+
+
+def corridor_and_room(door_x: tuple[float, float] | None = (3.0, 4.0), *,
+                      room_seen: bool = True, far_jamb: bool = True) -> OccupancyMap:
+    """A 10 x 8 m map: corridor y 5..7 (free), wall y 4.8..5.0, room y 0.5..4.8 behind it.
+
+    ``door_x``: the opening in the wall; ``room_seen``: the room is free (else
+    unknown); ``far_jamb``: the wall east of the door is mapped (else unknown,
+    as before the robot has passed the door).
+    """
+    h, w = int(8 / RES), int(10 / RES)
+    p = np.full((h, w), UNKNOWN)
+    ys = (np.arange(h) + 0.5) * RES
+    xs = (np.arange(w) + 0.5) * RES
+    Y, X = np.meshgrid(ys, xs, indexing="ij")
+    p[(Y >= 5.0) & (Y <= 7.0)] = FREE
+    p[(Y > 7.0) & (Y <= 7.2)] = OCC
+    wall = (Y >= 4.8) & (Y < 5.0)
+    p[wall] = OCC
+    if room_seen:
+        p[(Y >= 0.7) & (Y < 4.8) & (X > 0.2) & (X < 7.8)] = FREE
+        p[(Y >= 0.5) & (Y < 0.7) & (X > 0.2) & (X < 7.8)] = OCC
+    if door_x is not None:
+        p[wall & (X >= door_x[0]) & (X < door_x[1])] = FREE
+    if not far_jamb and door_x is not None:
+        p[wall & (X >= door_x[1])] = UNKNOWN
+    return OccupancyMap(p, RES, (0.0, 0.0, 0.0), occupied_thresh=0.65, free_thresh=0.2)
+
+
+SIGN = SignRef("MANAGER", 2.3, 5.0, math.radians(90.0))  # on the wall, facing the corridor
+
+
+# ---- the door finder --------------------------------------------------------------------------
+def test_find_door_finds_the_opening_next_to_the_sign():
+    door = find_door(corridor_and_room(), SIGN)
+    assert door is not None
+    assert door.wall[0] == pytest.approx(3.5, abs=0.05)
+    assert door.wall[1] == pytest.approx(5.0, abs=0.05)
+    assert door.width == pytest.approx(1.0, abs=0.06)
+    assert door.normal == pytest.approx((0.0, 1.0), abs=1e-9)
+    assert door.inside == pytest.approx(4.3, abs=0.1)  # free floor from y 5.0 down to 0.7
+    assert door.point(1.0) == pytest.approx((door.wall[0], door.wall[1] - 1.0), abs=1e-9)
+
+
+def test_find_door_tolerates_a_sign_placed_off_the_wall():
+    off = SignRef("MANAGER", 2.3, 4.6, SIGN.facing)  # camera estimate 0.4 m behind the wall
+    door = find_door(corridor_and_room(), off)
+    assert door is not None and door.wall[0] == pytest.approx(3.5, abs=0.05)
+
+
+@pytest.mark.parametrize("case", ["no opening", "room not seen", "far jamb not mapped",
+                                  "too far from the sign", "gap between readings"])
+def test_find_door_refuses_what_is_not_a_door_yet(case):
+    m = {"no opening": corridor_and_room(None),
+         "room not seen": corridor_and_room(room_seen=False),
+         "far jamb not mapped": corridor_and_room(far_jamb=False),
+         "too far from the sign": corridor_and_room((6.0, 7.0)),
+         "gap between readings": corridor_and_room((3.0, 3.15))}[case]
+    assert find_door(m, SIGN) is None
+
+
+def test_free_run_measures_free_floor_along_a_ray():
+    m = corridor_and_room()
+    assert free_run(m, (3.5, 4.5), (0.0, -1.0), max_distance=8.0) == pytest.approx(3.8, abs=0.05)
+    assert free_run(m, (3.5, 6.0), (0.0, 1.0), max_distance=0.5) == 0.5
+
+
+# ---- where to look next -----------------------------------------------------------------------
+def test_room_box_is_behind_the_wall_around_the_door():
+    door = DoorEstimate((3.5, 5.0), (0.0, 1.0), 1.0, 4.0)
+    box = room_box((int(8 / RES), int(10 / RES)), RES, (0.0, 0.0), door, half_width=2.0,
+                   depth=3.0)
+    def at(x, y):
+        return bool(box[int(y / RES), int(x / RES)])
+    assert at(3.5, 4.0) and at(1.6, 2.1) and at(5.4, 4.9)
+    assert not at(3.5, 5.5) and not at(3.5, 1.9) and not at(6.0, 4.0)
+
+
+def test_unseen_nearby_counts_area_within_the_radius():
+    unknown = np.zeros((200, 200), dtype=bool)
+    unknown[90:110, 90:110] = True  # 0.5 x 0.5 m at 0.025 m cells
+    area = unseen_nearby(unknown, RES, radius=1.0)
+    assert area[100, 100] == pytest.approx(0.25, rel=0.05)
+    assert area[100, 180] == pytest.approx(0.0, abs=1e-6)  # 2 m away
+
+
+def test_next_look_goes_where_the_room_is_still_unseen():
+    m = corridor_and_room()
+    p = m.occupancy.copy()
+    # The west end of the room is still unknown (not behind walls: beyond the seen floor).
+    ys = (np.arange(p.shape[0]) + 0.5) * RES
+    xs = (np.arange(p.shape[1]) + 0.5) * RES
+    Y, X = np.meshgrid(ys, xs, indexing="ij")
+    p[(Y >= 0.5) & (Y < 4.8) & (X < 1.5)] = UNKNOWN
+    m = OccupancyMap(p, RES, (0.0, 0.0, 0.0), occupied_thresh=0.65, free_thresh=0.2)
+    grid = inflate(m)
+    door = find_door(corridor_and_room(), SIGN)
+    here = (5.5, 3.0)
+    target = next_look(grid, m.classes()[2], door, here, min_distance=1.0)
+    assert target is not None
+    assert target[0] < 3.0  # toward the unseen west end
+    assert grid.clearance_at(*target) >= 0.5
+    # Nothing left to see: no further look.
+    assert next_look(grid, np.zeros_like(grid.blocked), door, here) is None
+
+
+# ---- the track keeps a door open ---------------------------------------------------------------
+def test_unblock_traversed_reopens_a_door_the_robot_came_through():
+    obstacle = np.zeros((120, 120), dtype=bool)
+    obstacle[58:62, :] = True
+    obstacle[58:62, 55:70] = False  # a 0.375 m gap at 0.025 m cells: blocked once inflated
+    grid = inflate_occupied(obstacle, RES, (0.0, 0.0), radius=0.3)
+    with pytest.raises(PlanningError):
+        plan(grid, (1.5, 0.5), (1.5, 2.5), snap_radius=0.1)
+    track = np.column_stack([np.full(41, 1.55), np.linspace(0.5, 2.5, 41)])
+    opened = unblock_traversed(grid, track)
+    path = plan(opened, (1.5, 0.5), (1.5, 2.5), snap_radius=0.1)
+    assert path.length < 2.3
+    assert unblock_traversed(opened, track) is opened  # nothing more to open
+
+
+# ---- closed loop in the simulated office -------------------------------------------------------
+@pytest.fixture(scope="module")
+def office():
+    return load_world(world_path("office"))
+
+
+def make_block(**params):
+    from blocks.navigate.blocks import RoomVisits
+    values = {name: p.default for name, p in RoomVisits.params.items()}
+    values.update(params)
+    b = RoomVisits(values, name="rooms", ctx=RunContext(dt=0.1, seed=0))
+    b.setup()
+    b.reset()
+    return b
+
+
+class Signs:
+    """A stand-in for signs.correlate's handle."""
+
+    def __init__(self, signs):
+        self.signs, self.version = signs, 1
+
+    def current(self):
+        return self.signs
+
+
+def inside(world, name, x, y):
+    from matplotlib.path import Path
+    polygon = next(p.polygon for p in world.places if p.name == name)
+    return Path(np.asarray(polygon)).contains_point((x, y))
+
+
+def test_the_robot_visits_the_managers_room_and_comes_back_without_collisions(office):
+    spec = load_robot("atrv_mini")
+    start = (6.5, 5.75, 0.0)  # in the corridor, before the MANAGER sign and door
+    sim = Simulation(office, [("r", spec, start)], seed=0)
+    robot = sim.robots["r"]
+    b = make_block()
+    signs = Signs([{"text": "MANAGER", "x": 8.35, "y": 5.1, "facing": 90.0}])
+    visiting_at, looks_true, was_visiting = None, [], False
+    out = None
+    for tick in range(2000):
+        b.ctx.tick = tick
+        ranges, _ = sim.sonar("r")
+        # the explorer drives straight on at 0.3 m/s; its loop has closed from tick 5 on
+        out = b.step(robot.odom, ranges, 0.3, 0.0, signs=signs if tick > 5 else None,
+                     done_in=tick > 5)
+        if out["visiting"] and visiting_at is None:
+            visiting_at = robot.pose.copy()
+        if b.visitor.phase == "spin" and (not looks_true or
+                                          np.hypot(*(looks_true[-1] - robot.pose[:2])) > 0.5):
+            looks_true.append(robot.pose[:2].copy())
+        if was_visiting and not out["visiting"]:
+            break
+        was_visiting = out["visiting"]
+        sim.command("r", out["v"], out["w"])
+        sim.step(0.1)
+    result = b.visitor.results[0]
+    assert result.status == "visited", result.reason
+    assert len(result.looks) >= 2
+    assert all(inside(office, "MANAGER", x, y) for x, y in looks_true)
+    # back where it left the explorer, facing the same way, and the explorer may finish now
+    assert np.hypot(*(robot.pose[:2] - visiting_at[:2])) < 0.4
+    assert abs(math.remainder(robot.pose[2] - visiting_at[2], 2 * math.pi)) < 0.15
+    assert out["done"] and out["v"] == 0.3  # passes the explorer's command through again
+    assert robot.collisions == 0
+    # the room is on the local map now: most of its floor was seen
+    local, _ = b._map_since(-1.0, (8.35, 5.1))
+    _, free, _ = local.classes()
+    h, w = free.shape
+    xs = local.origin[0] + (np.arange(w) + 0.5) * local.resolution
+    ys = local.origin[1] + (np.arange(h) + 0.5) * local.resolution
+    X, Y = np.meshgrid(xs, ys)
+    room = (X > 6.1) & (X < 11.9) & (Y > 0.1) & (Y < 4.9)
+    assert (free & room).sum() / room.sum() >= 0.8
+    b.finish()
+    metrics = b.ctx.metrics["rooms"]
+    assert metrics["visited"] == 1 and metrics["rooms"][0]["sign"] == "MANAGER"
+    assert metrics["map_builds"] >= 2
+
+
+def test_a_sign_with_no_door_in_reach_is_given_up(office):
+    spec = load_robot("atrv_mini")
+    sim = Simulation(office, [("r", spec, (1.1, 9.0, math.pi / 2))], seed=0)
+    b = make_block(give_up_distance=2.0)
+    # a "sign" on the plain west wall of the corridor, with no door anywhere near
+    signs = Signs([{"text": "LAB", "x": 0.1, "y": 10.0, "facing": 0.0}])
+    robot = sim.robots["r"]
+    for tick in range(60):
+        b.ctx.tick = tick
+        ranges, _ = sim.sonar("r")
+        out = b.step(robot.odom, ranges, 0.5, 0.0, signs=signs, done_in=True)
+        assert not out["visiting"]
+        assert out["done"] == (not b.visitor.pending)  # held back while the door is sought
+        sim.command("r", out["v"], out["w"])
+        sim.step(0.1)
+    [result] = b.visitor.results
+    assert result.status == "not_found" and result.attempts >= 2
+    assert "no open door" in result.reason
+
+
+def test_the_visitor_ignores_a_sign_it_already_knows():
+    visitor = RoomVisitor(lambda since, near: None)
+    assert visitor.add_sign(SignRef("A", 1.0, 1.0, 0.0))
+    assert not visitor.add_sign(SignRef("A", 1.3, 1.2, 0.0))  # the same plate, re-estimated
+    assert not visitor.add_sign(SignRef("A", 3.0, 1.5, 0.0))  # same text, odometry drifted
+    assert visitor.add_sign(SignRef("B", 2.0, 1.0, 0.0))  # another plate next to it
+    assert visitor.add_sign(SignRef("A", 12.0, 1.0, 0.0))  # another door with the same text
+    assert len(visitor.pending) == 3
+
+
+def test_hold_pauses_and_disabled_passes_through():
+    b = make_block(enabled=False)
+    out = b.step(np.zeros(3), np.full(16, 4.0), 0.4, -0.1, done_in=True)
+    assert out == {"v": 0.4, "w": -0.1, "visiting": False, "done": True}
+    b = make_block()
+    out = b.step(np.zeros(3), np.full(16, 4.0), 0.4, -0.1, hold=True)
+    assert out["v"] == 0.4 and not out["visiting"]  # no visit: the explorer (and its stop) rule
+
+
+def test_bad_signs_and_params_are_reported_with_the_field():
+    b = make_block()
+    with pytest.raises(BlockError) as err:
+        b.step(np.zeros(3), np.full(16, 4.0), 0.0, 0.0, signs=Signs([{"text": "A", "x": 1}]))
+    assert "input 'signs'" in str(err.value)
+    with pytest.raises(BlockError) as err:
+        make_block(depth_min=2.0, depth_max=1.0)
+    assert "depth_max" in str(err.value)
