@@ -340,7 +340,7 @@ class RoomVisits(Block):
         self._scans.append(np.array(ranges, dtype=np.float64))
         if signs is not None:
             self._take_signs(signs)
-        command = self.visitor.step(self.ctx.time, pose, self.ctx.dt, hold=bool(hold))
+        command = self.visitor.step(self.ctx.time, pose, hold=bool(hold))
         done = bool(done_in) and not self.visitor.visiting and not self.visitor.pending
         if command is None:
             return {"v": float(v_in), "w": float(w_in), "visiting": False, "done": done}

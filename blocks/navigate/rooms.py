@@ -451,7 +451,7 @@ class RoomVisitor:
         self.door: DoorEstimate | None = None
         self.grid: NavGrid | None = None  # the last grid planned on (pictures, tests)
         self._leg: _Leg | None = None
-        self._then: np.ndarray | None = None
+        self._face_after = False  # at the end of this leg, face the door and find it again
         self._refined = 0  # door estimates refined from in front of the door
         self._facing_out = False
         self._sign: _Pending | None = None
@@ -462,7 +462,6 @@ class RoomVisitor:
         self._failure = ""
         self._spun = 0.0
         self._heading = 0.0
-        self._next_phase = ""
 
     # ---- feeding it ----------------------------------------------------------------------
     def add_sign(self, sign: SignRef, time: float = 0.0) -> bool:
@@ -483,7 +482,7 @@ class RoomVisitor:
         return self.phase != "idle"
 
     # ---- the machine -----------------------------------------------------------------------
-    def step(self, time: float, pose: np.ndarray, dt: float,
+    def step(self, time: float, pose: np.ndarray,
              hold: bool = False) -> tuple[float, float] | None:
         """This tick's velocities, or None when the caller's behaviour should drive.
 
@@ -549,31 +548,27 @@ class RoomVisitor:
             self._sign, self._start_pose, self._started = item, pose.copy(), time
             self._looks, self._failure = [], ""
             self._depth = min(self.p.depth_max, door.inside - self.p.margin)
-            # Two legs: a path that arrives on the door's axis at an angle cuts the
-            # corner and meets the door askew, so the robot stops on the axis first.
-            self._begin_leg("enter", way, time,
-                            then=np.vstack([approach, door.point(0.0), door.point(self._depth)]))
+            # A path that arrives on the door's axis at an angle cuts the corner and
+            # meets the door askew, so the robot stops on the axis first (see _face).
+            self._begin_leg("enter", way, time, face_after=True)
             return True
         return False
 
     def _begin_leg(self, phase: str, path: np.ndarray, time: float,
-                   then: np.ndarray | None = None) -> None:
-        """Follow ``path``, then (same phase) ``then`` if given: a stop between the two."""
+                   face_after: bool = False) -> None:
+        """Follow ``path``; with ``face_after``, face the door at its end (see :meth:`_face`)."""
         self.phase = phase
         self._leg = _Leg(PurePursuit(_dedupe(path), self.pursuit), time, progress_time=time)
-        self._then = then
+        self._face_after = face_after
 
     def _follow(self, time: float, pose: np.ndarray) -> tuple[float, float]:
         leg = self._leg
         assert leg is not None
         v, w, status = leg.follower.step(pose, 0.0)
         if status == "arrived":
-            if self.phase in ("enter", "return") and self._then is not None:
-                # At the door's axis: face the door, find it again, then through it.
+            if self._face_after:  # on the door's axis: face it, find it again, go through
                 self._facing_out = self.phase == "return"
                 self.phase = "face"
-            elif self._then is not None:
-                self._begin_leg(self.phase, self._then, time)
             else:
                 self._leg_ended(time, pose, "")
             return 0.0, 0.0
@@ -588,20 +583,20 @@ class RoomVisitor:
         return float(v), float(w)
 
     def _face(self, time: float, pose: np.ndarray) -> tuple[float, float]:
-        """Turn to face the door from in front of it, then find it again and go in.
+        """Turn to face the door from its axis, find it again, then go through it (in or out).
 
         Why: a door seen in passing, from the corridor, is drawn narrow and
         lopsided by the sonar cones; seen square on from close by, its jambs
-        are where the front sonars say.  The new estimate replaces the old
+        are where the front sonars say; on the way out, odometry has drifted.  The new estimate replaces the old
         one if it is the same opening (within ``refine_radius``) and no
         narrower (sonar only ever narrows a door, so the wider view is truer).
         """
         assert self.door is not None and self._sign is not None
         sign = 1.0 if self._facing_out else -1.0
         heading = math.atan2(sign * self.door.normal[1], sign * self.door.normal[0])
-        error = wrap(heading - float(pose[2]))
-        if abs(error) > self.p.heading_tolerance:
-            return 0.0, math.copysign(min(self.p.spin_rate, max(0.15, 1.5 * abs(error))), error)
+        turn = self._turn_to(heading, pose)
+        if turn is not None:
+            return 0.0, turn
         # On the way out only the last scans: odometry has drifted during the looks, and
         # the door must be found where it is in the frame the robot drives in now.
         since = time - self.p.exit_window if self._facing_out else self._started - self.p.window
@@ -686,7 +681,7 @@ class RoomVisitor:
             except PlanningError:
                 pass
         # The rest is planned in _face once the door is found again from inside.
-        self._begin_leg("return", np.vstack(inside), time, then=np.vstack([on_axis]))
+        self._begin_leg("return", np.vstack(inside), time, face_after=True)
 
     def _way_back(self) -> np.ndarray:
         """From in front of the door to where the visit began (A* in the corridor)."""
@@ -702,12 +697,18 @@ class RoomVisitor:
 
     def _align(self, time: float, pose: np.ndarray) -> tuple[float, float]:
         """Turn on the spot to the heading the visit began with."""
-        error = wrap(float(self._start_pose[2]) - float(pose[2]))
-        if abs(error) <= self.p.heading_tolerance:
+        turn = self._turn_to(float(self._start_pose[2]), pose)
+        if turn is None:
             self._end(time, "failed" if self._failure else "visited")
             return 0.0, 0.0
-        w = math.copysign(min(self.p.spin_rate, max(0.15, 1.5 * abs(error))), error)
-        return 0.0, w
+        return 0.0, turn
+
+    def _turn_to(self, heading: float, pose: np.ndarray) -> float | None:
+        """Turn rate toward ``heading`` (slowing near it), or None once within tolerance."""
+        error = wrap(heading - float(pose[2]))
+        if abs(error) <= self.p.heading_tolerance:
+            return None
+        return math.copysign(min(self.p.spin_rate, max(0.15, 1.5 * abs(error))), error)
 
     def _end(self, time: float, status: str) -> None:
         assert self._sign is not None
