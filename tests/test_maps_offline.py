@@ -163,6 +163,61 @@ def test_drift_correction_pulls_a_drifting_odometry_back_onto_the_walls():
     assert after.mean() < 0.5 * before.mean()
 
 
+def _rotated(xy: np.ndarray, angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return xy @ np.array([[c, -s], [s, c]]).T
+
+
+def l_corridor_run(building_angle: float, slip_deg: float, seed: int = 0):
+    """East along a corridor, a turn on the spot, then north up a corridor never seen before,
+    in a building turned by ``building_angle``; the turn slips by ``slip_deg`` on the
+    odometry, which then integrates the wrong heading.  True poses, odometry, readings."""
+    # the second corridor's east wall is set back 0.6 m, so no wall carries on round the turn
+    walls = np.array([[0, 0, 12, 0], [0, 3, 9.5, 3], [0, 0, 0, 3], [12, 0, 12, 3],
+                      [12, 3, 12.6, 3], [12.6, 3, 12.6, 15], [9.5, 3, 9.5, 15],
+                      [9.5, 15, 12.6, 15]], dtype=float)
+    walls = np.column_stack([_rotated(walls[:, :2], building_angle),
+                             _rotated(walls[:, 2:], building_angle), np.full(len(walls), 0.05)])
+    east = [[1.0 + 0.045 * k, 1.5, 0.0] for k in range(224)]
+    turn = [[11.05, 1.5, math.pi / 2 * k / 20] for k in range(1, 21)]
+    north = [[11.05, 1.5 + 0.045 * k, math.pi / 2] for k in range(1, 250)]
+    local = np.array(east + turn + north)
+    truth = np.column_stack([_rotated(local[:, :2], building_angle),
+                             local[:, 2] + building_angle])
+    odom = truth.copy()
+    slip = np.zeros(len(truth))
+    slip[len(east):len(east) + len(turn)] = np.radians(slip_deg) / len(turn)
+    odom[:, 2] = truth[:, 2] + np.cumsum(slip)
+    steps = np.hypot(*np.diff(truth[:, :2], axis=0).T)
+    odom[1:, 0] = truth[0, 0] + np.cumsum(steps * np.cos(odom[1:, 2]))
+    odom[1:, 1] = truth[0, 1] + np.cumsum(steps * np.sin(odom[1:, 2]))
+    rng = np.random.default_rng(seed)
+    spec = SonarSpec(specular=False, noise_std=0.01)
+    readings = [sonar_readings(sensor_poses_along(pose[None], MOUNTS)[0], walls, spec, rng)
+                for pose in truth]
+    return truth, odom, np.array([r for r, _ in readings]), np.array([e for _, e in readings])
+
+
+@pytest.mark.parametrize("building_angle", [0.0, 0.5])
+def test_right_angled_walls_correct_heading_along_walls_never_seen_before(building_angle):
+    truth, odom, ranges, echo = l_corridor_run(building_angle, slip_deg=4.0)
+    from blocks.maps.drift import DriftCorrection
+
+    def errors(poses):
+        heading = np.degrees(np.abs((poses[:, 2] - truth[:, 2] + np.pi) % (2 * np.pi) - np.pi))
+        return heading[-1], np.hypot(*(poses[-1, :2] - truth[-1, :2]))
+
+    plain = correct_odometry(odom, ranges, echo, MOUNTS, params=DriftCorrection(rectilinear=False))
+    right = correct_odometry(odom, ranges, echo, MOUNTS, params=DriftCorrection(rectilinear=True))
+    odom_heading, odom_position = errors(odom)
+    assert odom_heading > 3.9 and odom_position > 0.5  # the slip shows at the end
+    plain_heading, _ = errors(plain)
+    right_heading, right_position = errors(right)
+    assert plain_heading > 1.0  # new walls alone cannot tell the heading
+    assert right_heading < 0.5, right_heading
+    assert right_position < 0.15 * odom_position, (right_position, odom_position)
+
+
 def test_parameters_are_checked():
     with pytest.raises(ValueError):
         OfflineMapParams(l_free=0.2)

@@ -27,7 +27,7 @@ def test_the_signs_along_the_path_are_read_and_placed_without_false_signs(office
     # room visits change the path; a sign passed while a visit drives can be missed
     assert signs["read_exactly_along_path"] >= 0.85 * signs["signs_along_path"]
     assert signs["false_signs"] == 0
-    assert signs["position_error_max"] < 0.8  # odometry drift dominates this
+    assert signs["position_error_max"] < 0.4  # what the drift correction leaves (odometry: 0.8)
     assert signs["position_error_max_true_pose"] < 0.3  # the correlation's own error
     # white panels (the coffee machine's "BARISTA", ...) can pass for a plate in some
     # frames, the more so now that the camera looks round inside the rooms; they never
@@ -68,7 +68,7 @@ def test_the_semantic_map_is_written_and_its_rooms_are_the_signed_ones(office_ru
     assert knowledge["live_updates"] >= 10  # re-reasoned as the signs came in
     assert knowledge["signed_places"] >= 10
     assert knowledge["rooms_one_place_rooms"] >= 10  # each glimpsed room is one place
-    assert knowledge["rooms_mean_iou_observed"] >= 0.55  # of what the sonar saw of them
+    assert knowledge["rooms_mean_iou_observed"] >= 0.6  # of what the sonar saw of them
     geo = json.loads((out / "places.geojson").read_text())
     names = {f["properties"].get("name") for f in geo["features"]}
     # the mail room, read last after ~15 min of odometry drift, is not always named yet
@@ -86,16 +86,18 @@ def test_the_semantic_map_is_written_and_its_rooms_are_the_signed_ones(office_ru
 
 
 def test_the_rooms_behind_the_signs_are_visited_and_mapped(office_run):
-    """Issue 7's target is a mean IoU >= 0.7 over the rooms the run explored (>= half
-    seen). Measured runs give 0.69-0.83 depending on small changes to the path, so
-    this guards 0.65 until the visits are steadier (issue 7 stays open for it)."""
+    """Issue 7's target: a mean IoU >= 0.7 over the rooms the run explored (>= half seen).
+    The default office run measures 0.85, every explored room 0.80-0.88; the bounds leave
+    room for small changes to the path, not for the odometry's bent walls (0.69)."""
     _, metrics = office_run
     rooms = metrics["rooms"]
     assert rooms["visited"] >= 9 and rooms["failed"] == 0
     assert metrics["world"]["collisions"] == 0
     knowledge = metrics["knowledge"]
     assert knowledge["rooms_explored_rooms"] >= 9
-    assert knowledge["rooms_mean_iou_explored"] >= 0.65
+    assert knowledge["rooms_mean_iou_explored"] >= 0.75
+    explored = [r["iou"] for r in knowledge["rooms"] if r["coverage"] >= 0.5]
+    assert len(explored) == knowledge["rooms_explored_rooms"] and min(explored) >= 0.65
     assert metrics["follower.loop"]["loop_closed"]
 
 

@@ -308,6 +308,9 @@ class OfflineMapBlock(_MapWriter):
         "resolution": Param(float, 0.025, "offline map cell size", unit="m", min=0.005,
                             max=1.0),
         "correct_drift": Param(bool, True, "correct the odometry against the walls first"),
+        "rectilinear": Param(bool, True, "walls meet at right angles, so every straight wall "
+                                         "measures heading (turn off for buildings that have "
+                                         "walls at other angles)"),
         "agree_tol": Param(float, 0.1, "an echo this close to its predicted range confirms it",
                            unit="m", min=0.0),
         "min_support": Param(int, 8, "features need this many echoes", min=2),
@@ -335,7 +338,8 @@ class OfflineMapBlock(_MapWriter):
             spec = _robot(self.p.robot)
             params = OfflineMapParams(resolution=self.p.resolution, agree_tol=self.p.agree_tol,
                                       min_support=self.p.min_support,
-                                      correct_drift=self.p.correct_drift)
+                                      correct_drift=self.p.correct_drift,
+                                      rectilinear=self.p.rectilinear)
             self._result = build_offline_map(np.array(self._poses), np.array(self._scans),
                                              spec.sonar_mounts, cone_deg=spec.sonar.cone_deg,
                                              max_range=spec.sonar.max_range, params=params)

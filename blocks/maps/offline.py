@@ -69,6 +69,9 @@ class OfflineMapParams:
         Log-odds are kept within +-clamp.
     correct_drift
         Correct the odometry against the walls first (:mod:`blocks.maps.drift`).
+    rectilinear
+        Let that correction assume walls meet at right angles, so every
+        straight wall measures heading (:class:`blocks.maps.drift.DriftCorrection`).
     """
 
     resolution: float = 0.025
@@ -85,6 +88,7 @@ class OfflineMapParams:
     min_support: int = 8
     clamp: float = 4.0
     correct_drift: bool = True
+    rectilinear: bool = True
 
     def __post_init__(self) -> None:
         if not 0 < self.resolution <= 1:
@@ -212,7 +216,8 @@ def build_offline_map(poses: np.ndarray, ranges: np.ndarray, mounts: np.ndarray,
         echo = ranges < max_range - max_range_margin
     echo = np.asarray(echo, dtype=bool)
     if p.correct_drift:
-        poses = correct_odometry(poses, ranges, echo, mounts, cone_deg, DriftCorrection())
+        poses = correct_odometry(poses, ranges, echo, mounts, cone_deg,
+                                  DriftCorrection(rectilinear=p.rectilinear))
     sensors = sensor_poses_along(poses, mounts)  # (T, N, 3)
     features = [f for f in merge_features(extract_linear_features(sensors, ranges, echo, cone_deg))
                 if f.support >= p.min_support]
