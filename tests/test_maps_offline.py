@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from blocks.maps.drift import correct_odometry
+from blocks.maps.drift import DriftCorrection, correct_odometry
 from blocks.maps.features import (extract_linear_features, merge_features, predict_ranges,
                                   sensor_poses_along)
 from blocks.maps.logodds import InverseSonarModel, LogOddsMap
@@ -201,7 +201,6 @@ def l_corridor_run(building_angle: float, slip_deg: float, seed: int = 0):
 @pytest.mark.parametrize("building_angle", [0.0, 0.5])
 def test_right_angled_walls_correct_heading_along_walls_never_seen_before(building_angle):
     truth, odom, ranges, echo = l_corridor_run(building_angle, slip_deg=4.0)
-    from blocks.maps.drift import DriftCorrection
 
     def errors(poses):
         heading = np.degrees(np.abs((poses[:, 2] - truth[:, 2] + np.pi) % (2 * np.pi) - np.pi))

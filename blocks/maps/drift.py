@@ -148,13 +148,13 @@ def correct_odometry(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
     out = poses.copy()
     motion = _RigidMotion()
     mapped: list[LinearFeature] = []
-    axis = _BuildingAxis(p.axis_length) if p.rectilinear else None
+    axis = _BuildingAxis(p) if p.rectilinear else None
     for start in range(0, len(poses), p.chunk):
         part = slice(start, min(start + p.chunk, len(poses)))
         out[part] = motion.applied(poses[part])
         local = _local_features(out[part], ranges[part], echo[part], mounts, cone_deg)
         if axis is not None and local:
-            turn = axis.heading_error(local, p)
+            turn = axis.heading_error(local)
             if turn is not None:
                 delta = np.array([-p.rectilinear_gain * turn, 0.0, 0.0])
                 local = _move_chunk(motion, delta, poses, out, part, local)
@@ -211,15 +211,16 @@ class _RigidMotion:
 class _BuildingAxis:
     """The building's wall direction (modulo 90 degrees), from the first long walls seen."""
 
-    def __init__(self, length_needed: float) -> None:
-        self.length_needed = length_needed
+    def __init__(self, params: DriftCorrection) -> None:
+        self.p = params
         self.sum = np.zeros(2)
         self.length = 0.0
         self.angle: float | None = None
 
-    def heading_error(self, local: list[LinearFeature], p: DriftCorrection) -> float | None:
+    def heading_error(self, local: list[LinearFeature]) -> float | None:
         """Length-weighted mean angle (rad) of the chunk's walls off the axis, if any
         are near it; None until the axis is known."""
+        p = self.p
         long = [f for f in local if f.length >= p.rectilinear_min_length]
         if not long:
             return None
@@ -230,7 +231,7 @@ class _BuildingAxis:
             self.sum += (lengths[:, None] * np.column_stack([np.cos(4 * angles),
                                                               np.sin(4 * angles)])).sum(axis=0)
             self.length += float(lengths.sum())
-            if self.length >= self.length_needed:
+            if self.length >= p.axis_length:
                 self.angle = math.atan2(self.sum[1], self.sum[0]) / 4
             return None
         off = (angles - self.angle + math.pi / 4) % (math.pi / 2) - math.pi / 4
