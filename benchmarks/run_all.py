@@ -11,6 +11,7 @@ import bench_engine  # noqa: E402
 import bench_fuzzy  # noqa: E402
 import bench_maps  # noqa: E402
 import bench_planner  # noqa: E402
+import bench_query  # noqa: E402
 import bench_reasoner  # noqa: E402
 import bench_sim  # noqa: E402
 import object_recogniser  # noqa: E402
@@ -29,7 +30,8 @@ def main(argv: list[str] | None = None) -> int:
     for name, module in (("engine", bench_engine), ("sim", bench_sim), ("fuzzy", bench_fuzzy),
                          ("maps", bench_maps), ("sign_detector", sign_detector),
                          ("sign_reader", sign_reader), ("object_recogniser", object_recogniser),
-                         ("reasoner", bench_reasoner), ("planner", bench_planner)):
+                         ("reasoner", bench_reasoner), ("planner", bench_planner),
+                         ("query", bench_query)):
         extra = ["--json", str(args.results / f"{name}.json")] if args.results else []
         if name == "engine" and args.quick:
             extra += ["--seconds", "0.01", "--repeats", "1"]

@@ -48,7 +48,7 @@ from blocks.core.errors import SemmapError
 from semantic import rules as R
 from semantic.lexicon import Concept, build_lexicon
 from semantic.rules import INDOOR, MAP, Facts, RuleContext, TBox
-from semantic.timetable import DAYS, Timetable
+from semantic.timetable import DAYS, Slot, Timetable
 from semantic.vocabulary import Vocabulary, compact, load_vocabulary
 
 __all__ = ["DEFAULT_ONTOLOGY", "INDOOR", "MAP", "KnowledgeBase", "KnowledgeBaseError",
@@ -165,6 +165,26 @@ def _local(term: Any) -> str:
 
 def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_") or "x"
+
+
+def _parse_wkt(text: str) -> np.ndarray | None:
+    """The outline of a ``POLYGON ((x y, ...))`` written by :func:`_wkt` (None if not one)."""
+    m = re.fullmatch(r"\s*POLYGON\s*\(\((.*)\)\)\s*", text)
+    if m is None:
+        return None
+    try:
+        pts = np.array([[float(v) for v in pair.split()] for pair in m.group(1).split(",")])
+    except ValueError:
+        return None
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 4:
+        return None
+    return pts[:-1] if np.allclose(pts[0], pts[-1]) else pts
+
+
+def _slot_order(iri: Any) -> tuple[int, str]:
+    """``map:slot_10`` after ``map:slot_9``: slots are consulted in timetable order."""
+    m = re.search(r"(\d+)$", str(iri))
+    return (int(m.group(1)) if m else 0, str(iri))
 
 
 def _wkt(polygon: np.ndarray) -> str:
@@ -442,6 +462,61 @@ class KnowledgeBase:
             kb.add_timetable(timetable)
         return kb
 
+    @classmethod
+    def load(cls, path: str | Path, *, ontology: str | Path | None = None,
+             vocabulary: Vocabulary | None = None) -> KnowledgeBase:
+        """The KB a semantic mapping run wrote (:meth:`serialize`), ready to query.
+
+        The file's map facts (every subject in the ``map:`` namespace, asserted or
+        inferred) become this KB's facts, with the outlines and timetable slots
+        the queries need, and are reasoned over again with ``ontology`` (default:
+        the packaged one). Reasoning is monotone over a closure, so the answers
+        are those of the run that wrote the file.
+
+        Raises
+        ------
+        KnowledgeBaseError
+            The file is missing or is not Turtle (names the file and line).
+        """
+        path = Path(path)
+        g = rdflib.Graph()
+        try:
+            g.parse(path, format="turtle")
+        except FileNotFoundError:
+            raise KnowledgeBaseError("the semantic map file does not exist", file=path,
+                                     hint="Give the output folder of a semantic mapping run "
+                                          "(it holds semantic_map.ttl).") from None
+        except Exception as exc:  # noqa: BLE001 - rdflib raises many kinds on bad input
+            raise KnowledgeBaseError(f"the semantic map is not valid Turtle: "
+                                     f"{str(exc).splitlines()[0]}", file=path,
+                                     line=_bad_syntax_line(exc),
+                                     hint="Re-run the semantic mapping to write it again.") from None
+        kb = cls(ontology, vocabulary=vocabulary)
+        facts = {t for t in g if str(t[0]).startswith(_MAP_STR)}
+        kb._abox = facts
+        for s, wkt in ((t[0], t[2]) for t in facts if t[1] == INDOOR.polygon):
+            poly = _parse_wkt(str(wkt))
+            if poly is not None:
+                kb._polygons[s] = poly
+        names = {s: str(o) for s, p, o in facts if p == INDOOR.name}
+        for slot in sorted((t[0] for t in facts if t[1] == RDF.type and t[2] == INDOOR.Slot),
+                           key=_slot_order):
+            one = {p: o for s2, p, o in facts if s2 == slot and p != INDOOR.dayOfWeek}
+            person = one.get(INDOOR.person)
+            try:
+                start = dt.time.fromisoformat(str(one[INDOOR.startTime]))
+                end = dt.time.fromisoformat(str(one[INDOOR.endTime]))
+            except (KeyError, ValueError):
+                continue  # not a slot this KB wrote
+            days = tuple(sorted((str(o) for s2, p, o in facts
+                                 if s2 == slot and p == INDOOR.dayOfWeek), key=DAYS.index))
+            subject = one.get(INDOOR.subject)
+            kb._slots.append((slot, person, Slot(names.get(person, str(person)),
+                                                 str(one.get(INDOOR.placeName, "")), days,
+                                                 start, end, str(subject) if subject else None)))
+        kb._changed()
+        return kb
+
     # ---- reasoning -------------------------------------------------------------------------------
     def reason(self) -> ReasoningStats:
         """Materialise the ontology's and the rules' consequences (see the module docstring).
@@ -712,6 +787,30 @@ class KnowledgeBase:
                            & facts.objects(b, INDOOR.hasDoor))
             g.add_edge(self._id(a), self._id(b), doors=doors)
         return g
+
+    def polygon(self, place_id: str) -> np.ndarray | None:
+        """A place's outline (N, 2), map frame, or None if it has none."""
+        poly = self._polygons.get(self._iri(place_id))
+        return None if poly is None else poly.copy()
+
+    def people_names(self) -> list[str]:
+        """The names of the people from the timetable (not the stand-ins made for roles)."""
+        facts = self.facts
+        return sorted(str(facts.one(p, INDOOR.name)) for p in facts.subjects(RDF.type, INDOOR.Person)
+                      if R.DEFAULT not in facts.objects(p, INDOOR.source)
+                      and facts.one(p, INDOOR.name) is not None)
+
+    def people_named(self, text: str) -> list[str]:
+        """The names of the people a text names: a person's name, or everyone with a role
+        (a stand-in for a role nobody on the timetable has is named by the role)."""
+        people, _ = self._people(text)
+        return sorted(str(self.facts.one(p, INDOOR.name) or self._id(p)) for p in people)
+
+    def door_position(self, door_id: str) -> tuple[float, float] | None:
+        """A door's (x, y), map frame, or None."""
+        d = self._iri(door_id)
+        x, y = self.facts.one(d, INDOOR.x), self.facts.one(d, INDOOR.y)
+        return (float(x), float(y)) if x is not None and y is not None else None
 
     def resolve(self, text: str) -> Concept | None:
         """The ontology concept an English word or phrase names (see semantic.lexicon)."""

@@ -24,5 +24,5 @@ def test_benchmarks_quick_run(tmp_path):
     detector = json.loads((tmp_path / "sign_detector.json").read_text())
     reader = json.loads((tmp_path / "sign_reader.json").read_text())
     assert detector and reader
-    for name in ("object_recogniser", "reasoner", "planner"):
+    for name in ("object_recogniser", "reasoner", "planner", "query"):
         assert json.loads((tmp_path / f"{name}.json").read_text()), name

@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 
 import cv2
+import numpy as np
 import pytest
 
 from conftest import ROOT
@@ -114,3 +115,32 @@ def test_the_shredder_seen_in_the_kitchen_overrides_the_default(office_run):
     defaults = list(graph.query(
         prefix + "SELECT ?p WHERE { ?p indoor:hasDefaultEquipment indoor:Shredder }"))
     assert defaults == []
+
+
+def test_the_query_planner_plans_on_the_run_and_names_what_its_map_lacks(office_run, cli):
+    """`semmap ask` on a real mapping run: the drift-corrected path is written, the kitchen
+    (signed, visited) is planned to through its door, and a place the run did not name is
+    reported as missing with the places it did name, not guessed."""
+    from blocks.maps.pathio import read_path_csv
+    out, _ = office_run
+    ticks, poses = read_path_csv(out / "maps" / "offline_path.csv")
+    assert len(ticks) > 1000 and np.allclose(poses[0], [1.0, 5.8, 0.0], atol=1e-3)
+    result = cli("ask", "go to the kitchen", "--map", out, "--json")
+    assert result.code == 0, result.err
+    data = json.loads(result.out)
+    assert [(s["action"], s["place"]) for s in data["steps"]] == [("go to", "KITCHEN")]
+    assert 25 < data["path_length_m"] < 35  # along the south corridor, into the room
+    result = cli("ask", "go to the pharmacy", "--map", out)
+    assert result.code == 3
+    assert "this map has no pharmacy" in result.err and "KITCHEN" in result.err
+
+
+def test_a_plan_on_the_mapped_run_is_driven_in_the_true_world_without_collisions(office_run,
+                                                                                  cli, tmp_path):
+    out, _ = office_run
+    result = cli("ask", "go to the kitchen", "--map", out, "--execute", "--out", tmp_path / "x")
+    assert result.code == 0, result.err
+    metrics = json.loads((tmp_path / "x" / "run.json").read_text())["metrics"]
+    assert [(g["name"], g["status"]) for g in metrics["goto"]["goals"]] == [("KITCHEN",
+                                                                             "reached")]
+    assert metrics["world"]["collisions"] == 0

@@ -18,6 +18,7 @@ from blocks.core import Block, BlockError, Param, Port, block
 
 from .logodds import InverseSonarModel, LogOddsMap
 from .mapio import OccupancyMap, write_map
+from .pathio import write_path_csv
 from .paper import LocalMapper, PaperGlobalMap, SensorMount, free_space_borders
 
 RANGES = Port.array("float64", (16,), unit="m", frame="robot",
@@ -295,7 +296,9 @@ class OfflineMapBlock(_MapWriter):
     by them and draws the map: echo terminations darkened, specular losses
     stopped at the predicted wall, max-range readings marking nothing,
     unexplored space left unknown.  Writes ``maps/offline.yaml`` and the
-    features as GeoJSON, ``maps/offline_walls.geojson``.
+    features as GeoJSON, ``maps/offline_walls.geojson``, and the drift-corrected
+    path in the map's frame, ``maps/offline_path.csv`` (where the robot has been,
+    so provably passable: the query planner plans through it).
     """
 
     map_name = "offline"
@@ -383,8 +386,10 @@ class OfflineMapBlock(_MapWriter):
 
     def write_extras(self, folder: Any) -> list[Any]:
         from .processing import write_walls_geojson
-        features = self._build().features
-        return [write_walls_geojson(
+        result = self._build()
+        features = result.features
+        return [write_path_csv(folder / "offline_path.csv", self._ticks, result.poses),
+                write_walls_geojson(
             folder / "offline_walls.geojson", [np.array([f.p0, f.p1]) for f in features],
             feature_properties=[{"support": f.support, "residual_m": round(f.residual, 4)}
                                 for f in features],

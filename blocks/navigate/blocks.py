@@ -57,7 +57,8 @@ class Goto(Block):
               "goals": Port.message(required=False, default=None,
                                     doc="goals: list of [x, y], [x, y, spin] or {x, y, spin, name}"),
               "map": Port(kind="handle", required=False, default=None,
-                          doc="a map being built (snapshot() gives an OccupancyMap)")}
+                          doc="a map being built (snapshot() gives an OccupancyMap), or a "
+                              "planner's grid (nav_grid() gives the NavGrid)")}
     outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity"),
                "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity (CCW +)"),
                "active": Port.scalar("bool", doc="true while a goal is pursued or waiting"),
@@ -136,6 +137,15 @@ class Goto(Block):
                 self._make_visit(self._true_grid())
             return
         if self.visit is not None and now < self._next_map_time:
+            return
+        nav_grid = getattr(handle, "nav_grid", None)
+        if nav_grid is not None:  # a planner's own grid: drive the legs it planned
+            grid = nav_grid()
+            if self.visit is None:
+                if self._pending:
+                    self._make_visit(grid)
+            elif self.visit.grid is not grid:
+                self.visit.set_grid(grid)
             return
         snapshot = getattr(handle, "snapshot", None)
         if snapshot is None:

@@ -160,3 +160,82 @@ class Knowledge(Block):
                              explored=self.p.explored_coverage)
         for key, value in score.items():
             self.report(f"rooms_{key}" if not key.startswith("rooms") else key, value)
+
+
+@block("semantic.task_planner", category="semantic")
+class TaskPlanner(Block):
+    """The text query planner as a node: an English command to goals for ``navigate.goto``.
+
+    At setup the command is parsed, grounded in the map (a semantic mapping
+    run's folder, or the ``world`` surveyed) and planned (see
+    ``semantic.query``); a command that cannot be grounded stops the graph
+    from loading with the planner's message. Every tick it offers the plan's
+    ``go to`` steps as ``goals`` and its planning grid as ``grid`` (connect it
+    to ``navigate.goto``'s ``map`` so the robot drives the legs planned here).
+    Writes ``plan.json`` and ``plan.png`` (the plan on the map); given the
+    robot's true ``pose``, the picture also shows the path driven, and
+    run.json gets the places the robot was in, in order.
+    """
+
+    inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad", required=False, default=None,
+                                 doc="the robot's pose in the map frame (to record the places "
+                                     "it reaches)")}
+    outputs = {"goals": Port.message(doc="the plan's go-to points: [{x, y, name}]"),
+               "grid": Port(kind="handle", doc="the planning grid: nav_grid() gives the "
+                                                "NavGrid the legs were planned on")}
+    params = {
+        "command": Param(str, "", "the English command (\"fetch the manager's mail\")"),
+        "map": Param(str, "", "a semantic mapping run's folder (empty: the world surveyed)"),
+        "world": Param(str, "", "world to survey when `map` is empty (name or YAML)",
+                       role="world"),
+        "now": Param(str, "monday 09:00", "the moment the command is given, for times and "
+                                          "days it leaves out (\"monday 10:30\" or ISO)"),
+    }
+
+    def setup(self) -> None:
+        from blocks.core import BlockError
+        from semantic.query import ask, load_map, parse_now
+        from blocks.core.errors import SemmapError
+        if not self.p.command.strip():
+            raise BlockError("no command to plan", node=self.name, field="param 'command'",
+                             hint="Set it, e.g. --set plan.command=\"go to the kitchen\".")
+        source = self.p.map or self.p.world
+        if not source:
+            raise BlockError("no map to plan on", node=self.name, field="param 'map'",
+                             hint="Set `map` to a semantic mapping run's folder or `world` to "
+                                  "a world.")
+        try:
+            self.qm = load_map(source)
+            self.plan = ask(self.p.command, self.qm, now=parse_now(self.p.now))
+        except SemmapError as exc:
+            raise BlockError(exc.message, node=self.name, field="param 'command'",
+                             hint=exc.hint) from None
+        self._goals = self.plan.goals()
+
+    def reset(self) -> None:
+        self._driven: list[tuple[float, float]] = []
+        self._visited: list[str] = []
+
+    def nav_grid(self):
+        """The grid the plan's legs were planned on."""
+        return self.qm.grid
+
+    def step(self, pose: np.ndarray | None = None) -> dict[str, Any]:
+        if pose is not None:
+            x, y = float(pose[0]), float(pose[1])
+            self._driven.append((x, y))
+            place = self.qm.place_at(x, y)
+            if place is not None and (not self._visited or self._visited[-1] != place):
+                self._visited.append(place)
+        return {"goals": self._goals, "grid": self}
+
+    def finish(self) -> None:
+        self.report("plan", self.plan.to_dict())
+        self.report("places_visited", [self.qm.label(p) for p in self._visited])
+        if self.ctx.out_dir is None:
+            return
+        from blocks.core.atomic import atomic_write_json
+        from semantic.query.draw import draw_plan
+        atomic_write_json(self.output_path("plan.json"), self.plan.to_dict())
+        driven = np.array(self._driven) if self._driven else None
+        draw_plan(self.output_path("plan.png"), self.plan, self.qm, driven=driven)
