@@ -126,7 +126,9 @@ def _route(qm: QueryMap, a: tuple[float, float], b: tuple[float, float]
     pa, pb = qm.place_at(*a), qm.place_at(*b)
     if pa is None or pb is None or pa == pb:
         return [], []
-    g = qm.__dict__.setdefault("_door_graph", _door_graph(qm))
+    g = qm.__dict__.get("_door_graph")
+    if g is None:  # built once per map (setdefault would build it on every call)
+        g = qm.__dict__["_door_graph"] = _door_graph(qm)
     try:
         chain = nx.shortest_path(g, pa, pb, weight="weight")
     except (nx.NetworkXNoPath, nx.NodeNotFound):
