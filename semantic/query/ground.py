@@ -43,8 +43,7 @@ DAY_NAMES = dict(zip(DAYS, ("Monday", "Tuesday", "Wednesday", "Thursday", "Frida
 CARRY = ("fetch", "bring", "take", "send", "deliver")
 #: Why a thing is looked for where it is (kb.where_is's ``how``).
 HOW = {"observed": "seen there by the robot", "default": "{kinds} usually have one",
-       "belongs": "{thing} belongs in {a_kind}", "works": "works there", "kind": "",
-       "function": ""}
+       "belongs": "{thing} belongs in {a_kind}"}
 
 
 class GroundingError(SemmapError):
@@ -263,8 +262,7 @@ class _Grounder:
         thing = self._concept_label(m)
         kind = self.qm.places[pid].kind or "Place"
         words = self._kind_words(kind)
-        return HOW.get(how, how).format(kinds=words + "s", thing=thing, a_kind=_a(words)) \
-            or words
+        return HOW.get(how, how).format(kinds=words + "s", thing=thing, a_kind=_a(words))
 
 
 def _local(iri: Any) -> str:
