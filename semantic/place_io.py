@@ -6,7 +6,6 @@ CRS, shapely, geojson.io's raw view) and for the ontology export.
 """
 from __future__ import annotations
 
-import io
 import json
 import math
 from pathlib import Path
@@ -14,7 +13,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-from blocks.core.atomic import atomic_write_bytes, atomic_write_text
+from blocks.core.atomic import atomic_write_figure, atomic_write_text
 from blocks.maps.mapio import OccupancyMap
 from semantic.places import PlaceMap
 
@@ -189,10 +188,6 @@ def draw_place_map(path: str | Path, pm: PlaceMap, m: OccupancyMap,
         if pm.doors or signs or objects:
             ax.legend(loc="upper right", fontsize=7)
         fig.tight_layout()
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png")
+        return atomic_write_figure(path, fig)
     finally:
         plt.close(fig)
-    path = Path(path)
-    atomic_write_bytes(path, buf.getvalue())
-    return path

@@ -41,3 +41,13 @@ def atomic_write_text(path: str | Path, text: str) -> None:
 
 def atomic_write_json(path: str | Path, obj: Any) -> None:
     atomic_write_text(path, json.dumps(to_jsonable(obj), indent=2) + "\n")
+
+
+def atomic_write_figure(path: str | Path, fig: Any) -> Path:
+    """Write a matplotlib figure as PNG, atomically (the caller still closes the figure)."""
+    import io
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    path = Path(path)
+    atomic_write_bytes(path, buf.getvalue())
+    return path

@@ -224,7 +224,7 @@ class TaskPlanner(Block):
         if pose is not None:
             x, y = float(pose[0]), float(pose[1])
             self._driven.append((x, y))
-            place = self.qm.place_at(x, y)
+            place = self.qm.place_at(x, y, hint=self._visited[-1] if self._visited else None)
             if place is not None and (not self._visited or self._visited[-1] != place):
                 self._visited.append(place)
         return {"goals": self._goals, "grid": self}

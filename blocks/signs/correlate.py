@@ -23,7 +23,6 @@ like a world file's ``signs:``.
 """
 from __future__ import annotations
 
-import io
 import json
 import math
 import re
@@ -35,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from blocks.core.atomic import atomic_write_bytes, atomic_write_text
+from blocks.core.atomic import atomic_write_figure, atomic_write_text
 from blocks.core.jsonable import to_jsonable
 
 from .geometry import camera_pose_of, compose, estimate_plate, relative, wrap
@@ -521,13 +520,9 @@ def draw_hybrid_map(occupancy_map, signs: Sequence[Mapping[str, Any]], path: str
             # a very small map (a short run) leaves no room to tighten: keep the layout
             warnings.filterwarnings("ignore", message="Tight layout not applied")
             fig.tight_layout()
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png")
+        return atomic_write_figure(path, fig)
     finally:
         plt.close(fig)
-    path = Path(path)
-    atomic_write_bytes(path, buf.getvalue())
-    return path
 
 
 # ---- scoring ---------------------------------------------------------------------------------

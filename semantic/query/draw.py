@@ -1,12 +1,11 @@
 """A picture of a plan: its legs over the map, numbered steps, and the path driven."""
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import numpy as np
 
-from blocks.core.atomic import atomic_write_bytes
+from blocks.core.atomic import atomic_write_figure
 
 from .mapsource import QueryMap
 from .tasks import TaskPlan
@@ -66,11 +65,6 @@ def draw_plan(path: str | Path, plan: TaskPlan, qm: QueryMap, *,
         ax.set_title(f'"{plan.grounding.request.text}"')
         ax.legend(loc="upper right", fontsize=7)
         fig.tight_layout()
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png")
+        return atomic_write_figure(path, fig)
     finally:
         plt.close(fig)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(path, buf.getvalue())
-    return path

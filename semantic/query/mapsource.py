@@ -185,13 +185,21 @@ class QueryMap:
             cv2.circle(mask, (int(c), int(r)), int(1.0 / g.resolution), 1, -1)
         return mask.astype(bool)
 
-    def place_at(self, x: float, y: float) -> str | None:
-        """The id of the place whose outline holds (x, y), or None."""
-        for pid, info in self.places.items():
-            if info.polygon is not None and cv2.pointPolygonTest(
-                    info.polygon.astype(np.float32), (float(x), float(y)), False) >= 0:
+    def place_at(self, x: float, y: float, hint: str | None = None) -> str | None:
+        """The id of the place whose outline holds (x, y), or None; ``hint`` (e.g. the
+        place the robot was in a tick ago) is tested first."""
+        order = [hint] if hint in self.places else []
+        for pid in order + [p for p in self.places if p != hint]:
+            outline = self._outlines.get(pid)
+            if outline is not None and cv2.pointPolygonTest(
+                    outline, (float(x), float(y)), False) >= 0:
                 return pid
         return None
+
+    @functools.cached_property
+    def _outlines(self) -> dict[str, np.ndarray]:
+        return {pid: info.polygon.astype(np.float32) for pid, info in self.places.items()
+                if info.polygon is not None and len(info.polygon) >= 3}
 
 
 def _id_order(pid: str) -> tuple[str, int, str]:
