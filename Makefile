@@ -37,6 +37,7 @@ demo: venv
 	@echo "map_server YAML + PGM + PNG), signs/captures/ (the zoomed captures), path.png and"
 	@echo "run.gif (the exploration), velocity_plot.png, graph.png (the pipeline),"
 	@echo "trajectory.csv, sonar.npz, probes.npz and run.json (scores, stops, timings)."
+	@echo "Ask the robot: $(BIN)/semmap ask \"go to the kitchen\" --map $(OUT) [--execute]"
 
 test: venv-dev
 	$(BIN)/python -m pytest -q -n 2
