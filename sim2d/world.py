@@ -7,8 +7,13 @@ A world file is a map_server YAML (``image``, ``resolution``, ``origin``,
     The robot's start pose (m, m, rad). Several robots: ``starts: [[x, y, theta], ...]``.
 ``signs: [{text, x, y, facing}]``
     Sign plates on walls; ``facing`` in degrees points into free space.
-    Optional per sign: ``width``, ``height`` (plate size, m) and ``z`` (height of
-    the plate's centre above the floor, m).
+    Optional per sign: ``width``, ``height`` (plate size, m), ``z`` (height of
+    the plate's centre above the floor, m) and its look: ``plate`` and ``ink``
+    (RGB 0-255: the plate's and the letters' colours), ``font`` (one of
+    :data:`SIGN_FONTS`) and ``spacing`` (extra space between letters, as a
+    fraction of the letter height).
+``colours: {wall, floor, ceiling, skirting}``
+    The camera's colours of the building (RGB 0-255 each, all optional).
 ``walls: [[x1, y1, x2, y2], ...]``
     Walls as line segments (m), instead of or beside the image.
 ``wall_thickness``
@@ -25,12 +30,22 @@ Ground truth for scoring a semantic map (all optional, so older files still load
     so even-odd point-in-polygon tests work on it.
 ``doors: [{x, y, width, between: [placeA, placeB]}]``
     True doors and openings: centre on the wall's centre line, clear width (m)
-    and the names of the two places they join (names from ``places``).
+    and the names of the two places they join (names from ``places``). A door
+    with ``closed: true`` is shut: the image has a wall there.
 ``objects: [{label, x, y}]``
     Objects in the world (``label`` an ontology class local name such as
-    ``Shredder``), at a point in free space.
+    ``Shredder``), at a point in free space. Optional, for the camera:
+    ``scale`` (times the catalogue size), ``light`` (brightness factor) and
+    ``cover`` (the fraction of its height hidden from below by something in
+    front of it, 0 to 0.8).
 ``timetable: FILE``
     A timetable file, relative to the world file.
+``commands: FILE``
+    English commands with their right answers on this floor (see
+    ``semantic/query``), relative to the world file.
+``generator: {kind, seed, version}``
+    Written by the building generator (:mod:`sim2d.worlds.building`): what
+    made this floor, for sweeps and reports.
 
 Walls become line segments with a radius ("capsules"): the image's wall
 pixels are traced into contours through the centres of their border pixels,
@@ -54,6 +69,10 @@ class WorldError(SemmapError):
     """A world file is malformed."""
 
 
+#: Fonts a sign may be lettered in (OpenCV's Hershey faces, by their short names).
+SIGN_FONTS = ("duplex", "simplex", "plain", "complex", "triplex")
+
+
 @dataclass(frozen=True)
 class Sign:
     """A rectangular sign plate on a wall, facing into free space."""
@@ -65,6 +84,10 @@ class Sign:
     width: float = 0.6
     height: float = 0.2
     z: float = 1.2  # height of the plate's centre above the floor
+    plate: tuple[int, int, int] = (238, 238, 238)  # RGB of the plate
+    ink: tuple[int, int, int] = (15, 15, 15)  # RGB of the letters (and the border)
+    font: str = "duplex"  # one of SIGN_FONTS
+    spacing: float = 0.0  # extra space between letters, fraction of the letter height
 
     def corners(self) -> np.ndarray:
         """The plate's 4 corners (x, y, z), left-to-right as seen from the front, top first."""
@@ -96,6 +119,7 @@ class TrueDoor:
     y: float
     width: float  # clear width, m
     between: tuple[str, str]  # the names of the two places it joins
+    closed: bool = False  # a shut door: a wall in the image, no way through
 
 
 @dataclass(frozen=True)
@@ -105,6 +129,9 @@ class WorldObject:
     label: str
     x: float
     y: float
+    scale: float = 1.0  # times the catalogue's width and height
+    light: float = 1.0  # brightness factor (lighting)
+    cover: float = 0.0  # fraction of its height hidden from below by a box in front
 
 
 @dataclass
@@ -124,6 +151,9 @@ class World:
     doors: list[TrueDoor] = field(default_factory=list)
     objects: list[WorldObject] = field(default_factory=list)
     timetable: Path | None = None
+    commands: Path | None = None  # English commands with their right answers on this floor
+    colours: dict[str, tuple[int, int, int]] = field(default_factory=dict)  # camera colours
+    generator: dict[str, Any] = field(default_factory=dict)  # kind, seed, version if generated
 
     def place(self, name: str) -> TruePlace | None:
         """The true place called ``name``, or None."""
@@ -241,12 +271,12 @@ def _signs(doc: LineDict, file: Path) -> list[Sign]:
         if not isinstance(item, dict):
             raise WorldError("each sign must be a mapping {text, x, y, facing}", file=file,
                              line=line, field=f"signs[{i}]")
-        unknown = set(item) - {"text", "x", "y", "facing", "width", "height", "z"}
+        unknown = set(item) - set(SIGN_KEYS)
         if unknown:
             raise WorldError(f"sign {i} has unknown field(s) {sorted(map(str, unknown))}",
                              file=file, line=line, field=f"signs[{i}]",
                              hint="A sign has text, x, y, facing (degrees) and optionally "
-                                  "width, height, z.")
+                                  "width, height, z, plate, ink, font, spacing.")
         text = item.get("text")
         if not isinstance(text, str) or not text.strip():
             raise WorldError(f"sign {i} needs a non-empty 'text'", file=file, line=line,
@@ -256,10 +286,45 @@ def _signs(doc: LineDict, file: Path) -> list[Sign]:
             values[key] = _number(item, key, file, where=f"signs[{i}]")
         for key, default in (("width", 0.6), ("height", 0.2), ("z", 1.2)):
             values[key] = _number(item, key, file, default, positive=True, where=f"signs[{i}]")
+        style = {key: _rgb(item, key, file, f"signs[{i}]") for key in ("plate", "ink")
+                 if key in item}
+        font = item.get("font", "duplex")
+        if font not in SIGN_FONTS:
+            raise WorldError(f"sign {i} has font {font!r}", file=file,
+                             line=line_of(item, "font") or line, field=f"signs[{i}].font",
+                             hint=f"Use one of {', '.join(SIGN_FONTS)}.")
+        spacing = _number(item, "spacing", file, 0.0, lo=0.0, hi=2.0, where=f"signs[{i}]")
         signs.append(Sign(text=text.strip(), x=values["x"], y=values["y"],
                           facing=math.radians(values["facing"]), width=values["width"],
-                          height=values["height"], z=values["z"]))
+                          height=values["height"], z=values["z"], font=font, spacing=spacing,
+                          **style))
     return signs
+
+
+def _rgb(item: dict, key: str, file: Path, where: str) -> tuple[int, int, int]:
+    """An RGB colour ``[r, g, b]`` with components 0-255."""
+    value = item.get(key)
+    ok = isinstance(value, list) and len(value) == 3 and all(
+        isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 255 for v in value)
+    if not ok:
+        raise WorldError(f"'{where}.{key}' must be a colour [r, g, b] of integers 0-255, got "
+                         f"{value!r}", file=file, line=line_of(item, key), field=f"{where}.{key}")
+    return (int(value[0]), int(value[1]), int(value[2]))
+
+
+def _colours(doc: LineDict, file: Path) -> dict[str, tuple[int, int, int]]:
+    raw = doc.get("colours")
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise WorldError("'colours' must be a mapping {wall, floor, ceiling, skirting}",
+                         file=file, line=line_of(doc, "colours"), field="colours")
+    unknown = set(raw) - set(COLOUR_KEYS)
+    if unknown:
+        raise WorldError(f"'colours' has unknown field(s) {sorted(map(str, unknown))}", file=file,
+                         line=line_of(doc, "colours"), field="colours",
+                         hint=f"Colours may be given for {', '.join(COLOUR_KEYS)}.")
+    return {key: _rgb(raw, key, file, "colours") for key in COLOUR_KEYS if key in raw}
 
 
 def _entries(doc: LineDict, key: str, file: Path, shape: str, allowed: set[str]) -> list:
@@ -330,7 +395,7 @@ def _doors(doc: LineDict, file: Path, places: list[TruePlace]) -> list[TrueDoor]
     names = {p.name for p in places}
     doors = []
     for i, line, item in _entries(doc, "doors", file, "{x, y, width, between: [placeA, placeB]}",
-                                  {"x", "y", "width", "between"}):
+                                  {"x", "y", "width", "between", "closed"}):
         where = f"doors[{i}]"
         x = _number(item, "x", file, where=where)
         y = _number(item, "y", file, where=where)
@@ -351,34 +416,54 @@ def _doors(doc: LineDict, file: Path, places: list[TruePlace]) -> list[TrueDoor]
                                  line=line_of(item, "between") or line, field=f"{where}.between",
                                  hint=f"Did you mean {close[0]!r}?" if close else
                                  "Add the place to 'places' or fix the name.")
-        doors.append(TrueDoor(x=x, y=y, width=width, between=pair))
+        closed = item.get("closed", False)
+        if not isinstance(closed, bool):
+            raise WorldError(f"{where}.closed must be true or false, got {closed!r}", file=file,
+                             line=line_of(item, "closed") or line, field=f"{where}.closed")
+        doors.append(TrueDoor(x=x, y=y, width=width, between=pair, closed=closed))
     return doors
 
 
 def _objects(doc: LineDict, file: Path) -> list[WorldObject]:
     objects = []
-    for i, line, item in _entries(doc, "objects", file, "{label, x, y}", {"label", "x", "y"}):
+    for i, line, item in _entries(doc, "objects", file, "{label, x, y}",
+                                  {"label", "x", "y", "scale", "light", "cover"}):
         where = f"objects[{i}]"
         label = _name(item, "label", file, line, where)
-        objects.append(WorldObject(label=label, x=_number(item, "x", file, where=where),
-                                   y=_number(item, "y", file, where=where)))
+        objects.append(WorldObject(
+            label=label, x=_number(item, "x", file, where=where),
+            y=_number(item, "y", file, where=where),
+            scale=_number(item, "scale", file, 1.0, lo=0.2, hi=5.0, where=where),
+            light=_number(item, "light", file, 1.0, lo=0.1, hi=3.0, where=where),
+            cover=_number(item, "cover", file, 0.0, lo=0.0, hi=0.8, where=where)))
     return objects
 
 
-def _timetable(doc: LineDict, file: Path) -> Path | None:
-    raw = doc.get("timetable")
+def _side_file(doc: LineDict, file: Path, key: str) -> Path | None:
+    """A file named under ``key`` (timetable, commands), relative to the world file."""
+    raw = doc.get(key)
     if raw is None:
         return None
     if not isinstance(raw, str) or not raw.strip():
-        raise WorldError(f"'timetable' must be a file name, got {raw!r}", file=file,
-                         line=line_of(doc, "timetable"), field="timetable",
+        raise WorldError(f"'{key}' must be a file name, got {raw!r}", file=file,
+                         line=line_of(doc, key), field=key,
                          hint="Give a path relative to the world file.")
     path = (file.parent / raw.strip()).resolve()
     if not path.is_file():
-        raise WorldError(f"timetable file '{raw}' not found (looked for {path})", file=file,
-                         line=line_of(doc, "timetable"), field="timetable",
+        raise WorldError(f"{key} file '{raw}' not found (looked for {path})", file=file,
+                         line=line_of(doc, key), field=key,
                          hint="The path is relative to the world file's folder.")
     return path
+
+
+def _generator(doc: LineDict, file: Path) -> dict[str, Any]:
+    raw = doc.get("generator")
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict) or not {"kind", "seed"} <= set(raw):
+        raise WorldError(f"'generator' must be a mapping {{kind, seed, version}}, got {raw!r}",
+                         file=file, line=line_of(doc, "generator"), field="generator")
+    return dict(raw)
 
 
 def _vector_walls(doc: LineDict, file: Path) -> np.ndarray:
@@ -401,7 +486,10 @@ def _vector_walls(doc: LineDict, file: Path) -> np.ndarray:
 
 WORLD_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh",
               "mode", "start", "starts", "signs", "walls", "wall_thickness", "name", "doc",
-              "places", "doors", "objects", "timetable")
+              "places", "doors", "objects", "timetable", "commands", "colours", "generator")
+SIGN_KEYS = ("text", "x", "y", "facing", "width", "height", "z", "plate", "ink", "font",
+             "spacing")
+COLOUR_KEYS = ("wall", "floor", "ceiling", "skirting")
 
 
 def load_world(path: str | Path) -> World:
@@ -466,7 +554,10 @@ def load_world(path: str | Path) -> World:
     world.places = _places(doc, path)
     world.doors = _doors(doc, path, world.places)
     world.objects = _objects(doc, path)
-    world.timetable = _timetable(doc, path)
+    world.timetable = _side_file(doc, path, "timetable")
+    world.commands = _side_file(doc, path, "commands")
+    world.colours = _colours(doc, path)
+    world.generator = _generator(doc, path)
     for i, obj in enumerate(world.objects):
         if world_is_occupied(world, obj.x, obj.y):
             raise WorldError(f"object {i} ({obj.label}) at ({obj.x:.2f}, {obj.y:.2f}) is inside "
