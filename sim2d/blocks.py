@@ -28,7 +28,11 @@ SIM = Port(kind="handle", doc="the simulation (from a sim2d.world node)")
 
 
 def resolve_world(name_or_path: str) -> Path:
-    """A world library name (``office``) or a path to a world YAML."""
+    """A world library name (``office``), a path to a world YAML, or a generated building
+    (``gen:KIND:SEED``, see :mod:`sim2d.worlds.family`)."""
+    if str(name_or_path).startswith("gen:"):
+        from .worlds.family import generated_world
+        return generated_world(str(name_or_path))
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml") or path.exists():
         return path
