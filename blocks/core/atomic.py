@@ -51,3 +51,24 @@ def atomic_write_figure(path: str | Path, fig: Any) -> Path:
     path = Path(path)
     atomic_write_bytes(path, buf.getvalue())
     return path
+
+
+def ensure_writable_dir(folder: str | Path, *, what: str = "output folder") -> Path:
+    """Create ``folder`` if needed and check that files can be written in it.
+
+    Raises
+    ------
+    SemmapError
+        Naming ``what`` (an option such as ``--out``) and the folder, when it
+        cannot be created or written (a read-only place, a file in the way).
+    """
+    from .errors import SemmapError
+    path = Path(folder)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".write-test-"):
+            pass
+    except OSError as exc:
+        raise SemmapError(f"{what} {str(path)!r} cannot be written: {exc.strerror or exc}",
+                          field=what, hint="Give a folder you can write to.") from None
+    return path

@@ -139,8 +139,9 @@ def _write_commands(world, seed: int, path: Path, doc: dict, header: str) -> Non
         from semantic.query.exam import generate_commands, write_commands
     except ImportError:  # the query planner is optional for the simulator
         return
-    cases, now = generate_commands(world, seed=seed)
-    write_commands(path.parent / f"{path.stem}.commands.yaml", cases, now)
+    from semantic.query.exam import DEFAULT_NOW
+    cases = generate_commands(world, seed=seed)
+    write_commands(path.parent / f"{path.stem}.commands.yaml", cases, DEFAULT_NOW)
     doc = {**doc}
     doc["commands"] = f"{path.stem}.commands.yaml"
     atomic_write_text(path, header + _dump(doc))

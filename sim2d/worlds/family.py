@@ -164,7 +164,8 @@ def cache_dir() -> Path:
     return root / "worlds" / f"v{GENERATOR_VERSION}"
 
 
-def generated_world(spec: str, folder: str | Path | None = None) -> Path:
+def generated_world(spec: str, folder: str | Path | None = None, *,
+                    name: str | None = None) -> Path:
     """The world file of a one-seed ``gen:KIND:SEED`` spec, generated if not there yet.
 
     Parameters
@@ -173,6 +174,9 @@ def generated_world(spec: str, folder: str | Path | None = None) -> Path:
         ``gen:KIND:SEED`` (``any`` is allowed: the seed picks the kind).
     folder : path, optional
         Where to write it (default: :func:`cache_dir`).
+    name : str, optional
+        The file's stem (default ``KIND-SEED``); a file given by name is always
+        written anew.
 
     Raises
     ------
@@ -189,7 +193,7 @@ def generated_world(spec: str, folder: str | Path | None = None) -> Path:
     kind = _kind_of(kind, seed)
     from .building import generate_building
     target = Path(folder) if folder is not None else cache_dir()
-    path = target / f"{kind}-{seed}.yaml"
-    if not path.is_file():
+    path = target / f"{name or f'{kind}-{seed}'}.yaml"
+    if name is not None or not path.is_file():
         generate_building(kind, seed, path)
     return path
