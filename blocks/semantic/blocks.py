@@ -6,7 +6,8 @@ reasoning time is reported to run.json). When the run finishes, the map is
 segmented into places, the signs label the rooms behind their doors, and the
 semantic map is written: ``DIR/semantic_map.ttl``, ``DIR/places.geojson`` and
 ``DIR/maps/semantic.png``. With ``world`` set, the places are scored against
-the world's true rooms and doors.
+the world's true rooms and doors, and, when the world names a commands file,
+the task planner is scored on its commands on the run's own map.
 """
 from __future__ import annotations
 
@@ -29,6 +30,11 @@ class Knowledge(Block):
     handle and, optionally, the object recogniser's ``objects``. The knowledge
     base is re-reasoned whenever a sign or an object is added; at the end the
     map's places are segmented, labelled and written out with the knowledge.
+    With ``world`` set, run.json gets the places' scores against its true rooms
+    (``rooms_*``) and, if the world names a commands file, the task planner's
+    score on those commands, asked on the map this run wrote (``commands_total``,
+    ``commands_right``, ``commands_right_fraction``, ``commands_<category>_right_fraction``
+    and ``commands_cases``, one row per command).
     """
 
     inputs = {
@@ -57,6 +63,7 @@ class Knowledge(Block):
         from semantic.vocabulary import load_vocabulary
         self._vocabulary = load_vocabulary()
         self._timetable = self._load_timetable()
+        self._commands = self._load_commands()
 
     def reset(self) -> None:
         self._signs: Any = None
@@ -128,6 +135,8 @@ class Knowledge(Block):
                 self.output_path(name)  # listed among the run's outputs
         if self.p.world:
             self._score(sm)
+        if self._commands is not None and self.ctx.out_dir is not None:
+            self._score_commands()
 
     def _corrected_path(self) -> np.ndarray | None:
         corrected = getattr(self._map, "corrected_path", None)
@@ -154,12 +163,37 @@ class Knowledge(Block):
                 return load_timetable(path)
         return None
 
+    def _load_commands(self):
+        """The world's commands and the moment they are asked at, or None."""
+        path = getattr(self._world(), "commands", None) if self.p.world else None
+        if path is None:
+            return None
+        from semantic.query.exam import load_commands
+        return load_commands(path)
+
     def _score(self, sm) -> None:
         from semantic.place_score import score_places
         score = score_places(sm.places, self._world(), names=sm.names,
                              explored=self.p.explored_coverage)
         for key, value in score.items():
             self.report(f"rooms_{key}" if not key.startswith("rooms") else key, value)
+
+    def _score_commands(self) -> None:
+        """The task planner on the world's commands, on the map this run wrote (the
+        offline map's files are written before this node finishes)."""
+        from semantic.query import MapSourceError, load_run_map
+        from semantic.query.exam import score_commands
+        try:
+            qm = load_run_map(self.ctx.out_dir)
+        except MapSourceError as exc:
+            self.report("commands_error", str(exc))
+            return
+        score = score_commands(qm, *self._commands)
+        for key in ("total", "right", "right_fraction"):
+            self.report(f"commands_{key}", score[key])
+        for name, tally in score["categories"].items():
+            self.report(f"commands_{name}_right_fraction", tally["right_fraction"])
+        self.report("commands_cases", score["cases"])
 
 
 @block("semantic.task_planner", category="semantic")
