@@ -86,7 +86,7 @@ def polygon_pixels(mask: np.ndarray, polygon: list[tuple[float, float]],
     --------
     >>> m = np.zeros((4, 4), bool)
     >>> polygon_pixels(m, [(0.0, 0.0), (0.1, 0.0), (0.1, 0.1), (0.0, 0.1)])
-    >>> m.sum()
+    >>> int(m.sum())
     4
     """
     h, w = mask.shape

@@ -8,7 +8,7 @@ ring
 hospital
     A long double-loaded corridor broken by wide halls, wards and theatres.
 school
-    A main corridor with one branch (a T) or two (an H), dead ends, classrooms.
+    A main corridor with one branch (a T) or two (a comb), dead ends, classrooms.
 hall
     An open hall, sometimes with cut (45-degree) corners and pillars, rooms off
     it and a corridor leading away.

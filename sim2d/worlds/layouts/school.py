@@ -1,4 +1,4 @@
-"""School: a main corridor with one branch (a T) or two (an H), each ending in a dead end.
+"""School: a main corridor with one branch (a T) or two (a comb), each ending in a dead end.
 
 Classrooms are large (5-9 m); branches are separate corridor places joined
 to the main one by an opening as wide as the branch.
@@ -50,6 +50,6 @@ def draw(plan: FloorPlan, rng: np.random.Generator, namer: RoomNamer) -> None:
                     room_row(plan, rng, namer, name, leg, side, start, leg[3], depth,
                              width=(3.0, 9.0), kinds=["Classroom"])
         legs.append(leg)
-    shape = "a T" if count == 1 else "an H"
+    shape = "a T" if count == 1 else "a comb"
     plan.doc = f"A school: a {length:.1f} m corridor with {shape} of dead-end branches, classrooms."
     plan.start = corridor_start(plan, rng, legs[int(rng.integers(len(legs)))])
