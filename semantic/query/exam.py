@@ -67,8 +67,9 @@ from .truth import FloorTruth, floor_truth
 if TYPE_CHECKING:
     from sim2d.world import World
 
-__all__ = ["CATEGORIES", "DEFAULT_NOW", "NEAREST_MARGIN", "CommandCase", "CommandsError",
-           "generate_commands", "load_commands", "score_commands", "write_commands"]
+__all__ = ["CATEGORIES", "DEFAULT_NOW", "NEAREST_MARGIN", "REFUSAL_SHARE", "CommandCase",
+           "CommandsError", "generate_commands", "load_commands", "score_commands",
+           "write_commands"]
 
 #: Command categories and what each asks.
 CATEGORIES: dict[str, str] = {
@@ -84,6 +85,9 @@ CATEGORIES: dict[str, str] = {
 DEFAULT_NOW = "monday 10:00"
 #: "the nearest office" is asked only if the next one is this much farther (m).
 NEAREST_MARGIN = 3.0
+#: Each refusal category gives at most this share of the commands (at least one): on a
+#: small floor they would otherwise fill the file, and they are the easy ones.
+REFUSAL_SHARE = 0.1
 #: Actions an expected objective may have (see semantic.query.Objective).
 OBJECTIVE_ACTIONS = ("go to", "pick up", "hand over", "look for")
 CASE_KEYS = ("command", "category", "objectives", "answer", "refused", "why")
@@ -157,12 +161,14 @@ def generate_commands(world: World, *, seed: int, count: int = 20) -> list[Comma
         The same seed gives the same commands.
     count
         How many at most; the categories take turns, so each the floor allows
-        appears once ``count`` reaches the number of categories.
+        appears once ``count`` reaches the number of categories. Each refusal
+        category gives at most :data:`REFUSAL_SHARE` of ``count``, so a small
+        floor may give fewer.
 
     Returns
     -------
     list of CommandCase
-        At most ``count``, no command twice.
+        No command twice.
 
     Examples
     --------
@@ -175,13 +181,17 @@ def generate_commands(world: World, *, seed: int, count: int = 20) -> list[Comma
     truth = floor_truth(world)
     rng = np.random.default_rng(seed)
     pools = {name: list(make(truth, rng)) for name, make in _MAKERS.items()}
-    return _take_turns(pools, rng, count)
+    caps = {name: max(1, math.ceil(REFUSAL_SHARE * count)) for name in pools
+            if name.startswith("refuse_")}
+    return _take_turns(pools, rng, count, caps)
 
 
-def _take_turns(pools: dict[str, list[CommandCase]], rng: np.random.Generator,
-                count: int) -> list[CommandCase]:
-    """Each category's cases shuffled, then one from each in turn until ``count``."""
-    queues = {name: [pool[i] for i in rng.permutation(len(pool))] for name, pool in pools.items()}
+def _take_turns(pools: dict[str, list[CommandCase]], rng: np.random.Generator, count: int,
+                caps: dict[str, int]) -> list[CommandCase]:
+    """Each category's cases shuffled (the first ``caps[name]`` kept), then one from each
+    in turn until ``count``."""
+    queues = {name: [pool[i] for i in rng.permutation(len(pool))][:caps.get(name, len(pool))]
+              for name, pool in pools.items()}
     out: list[CommandCase] = []
     seen: set[str] = set()
     while len(out) < count and any(queues.values()):

@@ -264,7 +264,8 @@ def room_row(plan: FloorPlan, rng: np.random.Generator, namer: RoomNamer, corrid
             for s in sides:  # before the door, else after it
                 u = d0 - gap - half if s < 0 else d0 + dw + gap + half
                 # on this room's own stretch of wall, clear of the corridor's ends and doors
-                if (max(lo_u, a) + half + 0.1 <= u <= min(hi_u, b) - half - 0.1
+                end = max(half + 0.1, 0.4)  # a plate's centre stays 0.4 m from a corner
+                if (max(lo_u + end, a + half + 0.1) <= u <= min(hi_u - end, b - half - 0.1)
                         and _clear_of_doors(plan, side, face, u, half)):
                     px, py = _to_xy(side, round(u, 4), face)
                     plan.plates.append(Plate(name, px, py, facing, look))
