@@ -78,6 +78,7 @@ SKIRTING_HEIGHT = 0.08  # m
 FLOOR_TILE = 0.6  # m: side of the floor's faint checker pattern
 BLUR_LEVELS = (0.0, 0.6, 1.2, 2.0, 3.0)  # px: sigmas blended per pixel (the last is the cap)
 _PALETTE = np.stack([FLOOR_BGR, CEILING_BGR, WALL_BGR, SKIRTING_BGR])  # by pixel class
+_PALETTE_ROWS = {"floor": 0, "ceiling": 1, "wall": 2, "skirting": 3}  # World.colours keys
 
 
 class CameraError(SemmapError):
@@ -404,8 +405,39 @@ def _shared_ends(seg: np.ndarray, has_length: np.ndarray
 
 
 # ---- sign plates ---------------------------------------------------------------------------
-def sign_plate_image(text: str, width_px: int = TEXTURE_WIDTH, height_px: int = 200) -> np.ndarray:
-    """The texture of a sign plate: black text centred on a light plate with a dark border.
+DEFAULT_PLATE = (238, 238, 238)  # RGB: a sign's plate (sim2d.world.Sign's default)
+DEFAULT_INK = (15, 15, 15)  # RGB: its letters
+BORDER_SOFTEN = 25  # grey levels: the border is the ink, this much towards the plate's colour
+
+
+@dataclass(frozen=True)
+class _Lettering:
+    """How one of :data:`sim2d.world.SIGN_FONTS` is drawn."""
+
+    face: int  # OpenCV Hershey face
+    stroke: float  # line thickness (px) per unit of font scale
+    slant: float = 0.0  # italic shear: px to the right per px above the text's middle
+    stretch: float = 1.0  # the letters' width factor (< 1: condensed)
+
+
+# OpenCV 5 draws every Hershey face with one sans-serif typeface, in three weights
+# (duplex and triplex alike), so complex is slanted and triplex condensed to keep
+# the five apart; plain's letters are 15/27 as tall as the others' at a scale, so
+# its stroke is too.
+_LETTERINGS = {
+    "duplex": _Lettering(cv2.FONT_HERSHEY_DUPLEX, 1.6),
+    "simplex": _Lettering(cv2.FONT_HERSHEY_SIMPLEX, 1.6),
+    "plain": _Lettering(cv2.FONT_HERSHEY_PLAIN, 0.89),
+    "complex": _Lettering(cv2.FONT_HERSHEY_COMPLEX, 1.6, slant=0.2),
+    "triplex": _Lettering(cv2.FONT_HERSHEY_TRIPLEX, 1.6, stretch=0.8),
+}
+
+
+def sign_plate_image(text: str, width_px: int = TEXTURE_WIDTH, height_px: int = 200, *,
+                     plate: tuple[int, int, int] = DEFAULT_PLATE,
+                     ink: tuple[int, int, int] = DEFAULT_INK, font: str = "duplex",
+                     spacing: float = 0.0) -> np.ndarray:
+    """The texture of a sign plate: text centred on a plate with a border in the ink's colour.
 
     Parameters
     ----------
@@ -414,35 +446,146 @@ def sign_plate_image(text: str, width_px: int = TEXTURE_WIDTH, height_px: int = 
         of the plate height).
     width_px, height_px : int
         Texture size (px).
+    plate, ink : (r, g, b) ints 0-255
+        Colours of the plate and of the letters (RGB, as in world files). The
+        border is the ink moved ``BORDER_SOFTEN`` grey levels towards the
+        plate in each channel (dark grey on the default light plate).
+    font : str
+        One of :data:`sim2d.world.SIGN_FONTS`: OpenCV's Hershey face of that
+        name, ``complex`` slanted and ``triplex`` condensed (see ``_LETTERINGS``).
+    spacing : float
+        Extra space between letters, as a fraction of the letter height
+        (>= 0); the spaced text is fitted to the plate like the plain text.
 
     Returns
     -------
     ndarray (height_px, width_px, 3) uint8, BGR.
+
+    Raises
+    ------
+    ValueError
+        On a texture under 4 x 4 px, an unknown font or a negative spacing.
     """
     w, h = int(width_px), int(height_px)
     if w < 4 or h < 4:
         raise ValueError(f"a plate texture needs at least 4x4 px, got {w}x{h}")
-    img = np.full((h, w, 3), 238, dtype=np.uint8)
+    if font not in _LETTERINGS:
+        raise ValueError(f"unknown sign font {font!r}: use one of {', '.join(_LETTERINGS)}")
+    if not spacing >= 0:
+        raise ValueError(f"letter spacing must be >= 0, got {spacing!r}")
+    plate_bgr, ink_bgr = _bgr(plate), _bgr(ink)
+    img = np.empty((h, w, 3), dtype=np.uint8)
+    img[:] = plate_bgr
     border = max(1, round(0.05 * min(w, h)))
-    cv2.rectangle(img, (0, 0), (w - 1, h - 1), (40, 40, 40), thickness=border * 2)
+    cv2.rectangle(img, (0, 0), (w - 1, h - 1), _border_colour(plate_bgr, ink_bgr),
+                  thickness=border * 2)
     text = " ".join(str(text).split())
     if not text:
         return img
-    font = cv2.FONT_HERSHEY_DUPLEX
-    (tw, th), _ = cv2.getTextSize(text, font, 1.0, 1)
+    look = _LETTERINGS[font]
+    (tw, th), _ = cv2.getTextSize(text, look.face, 1.0, 1)
+    tw_look = (tw + spacing * th * (len(text) - 1)) * look.stretch + look.slant * th
     inner_w, inner_h = w - 8 * border, h - 4 * border
-    scale = min(0.6 * h / max(th, 1), inner_w / max(tw, 1), inner_h / max(th, 1))
-    thickness = max(1, round(scale * 1.6))
-    (tw, th), _base = cv2.getTextSize(text, font, scale, thickness)
-    org = ((w - tw) // 2, (h + th) // 2)
-    cv2.putText(img, text, org, font, scale, (15, 15, 15), thickness, cv2.LINE_AA)
+    scale = min(0.6 * h / max(th, 1), inner_w / max(tw_look, 1), inner_h / max(th, 1))
+    thickness = max(1, round(scale * look.stroke))
+    if font == "duplex" and spacing == 0:  # fitted and drawn as it always was
+        (tw, th), _base = cv2.getTextSize(text, look.face, scale, thickness)
+        org = ((w - tw) // 2, (h + th) // 2)
+        cv2.putText(img, text, org, look.face, scale, ink_bgr, thickness, cv2.LINE_AA)
+        return img
+    scale, thickness = _fit_drawn(text, look, scale, spacing * th, th, inner_w)
+    alpha = _lettering_alpha(text, look, scale, thickness, spacing * th * scale, w, h)
+    a = alpha.astype(np.float32)[..., None] / np.float32(255)
+    ink_f = np.array(ink_bgr, dtype=np.float32)
+    img[:] = np.rint(img * (1 - a) + ink_f * a).astype(np.uint8)
     return img
 
 
+def _bgr(rgb) -> tuple[int, int, int]:
+    """An RGB colour as OpenCV's BGR tuple of ints."""
+    r, g, b = (int(c) for c in rgb)
+    return b, g, r
+
+
+def _border_colour(plate_bgr: tuple[int, int, int],
+                   ink_bgr: tuple[int, int, int]) -> tuple[int, int, int]:
+    """The ink moved ``BORDER_SOFTEN`` grey levels towards the plate in each channel
+    (no further than the plate's own level).
+
+    Examples
+    --------
+    >>> _border_colour((238, 238, 238), (15, 15, 15)), _border_colour((40, 60, 250), (250, 250, 240))
+    ((40, 40, 40), (225, 225, 250))
+    """
+    return tuple(i + min(max(p - i, -BORDER_SOFTEN), BORDER_SOFTEN)
+                 for p, i in zip(plate_bgr, ink_bgr))
+
+
+def _fit_drawn(text: str, look: _Lettering, scale: float, gap: float, text_h: float,
+               inner_w: float) -> tuple[float, int]:
+    """Shrink a font scale until the drawn line fits ``inner_w`` px; the scale and thickness.
+
+    ``gap`` (the extra space between letters) and ``text_h`` (the slant's
+    height) are in px at scale 1. Fitting at scale 1, as the default plate
+    does, misses how thick strokes widen the letters (by up to a fifth).
+    """
+    thickness = max(1, round(scale * look.stroke))
+    for _ in range(3):
+        drawn = (_line_width(text, look.face, scale, thickness, gap * scale) * look.stretch
+                 + look.slant * text_h * scale)
+        if drawn <= inner_w:
+            break
+        scale *= inner_w / drawn
+        thickness = max(1, round(scale * look.stroke))
+    return scale, thickness
+
+
+def _line_width(text: str, face: int, scale: float, thickness: int, gap: float) -> float:
+    """Width (px) of a line of text drawn with ``gap`` px more between its letters."""
+    return cv2.getTextSize(text, face, scale, thickness)[0][0] + gap * (len(text) - 1)
+
+
+def _lettering_alpha(text: str, look: _Lettering, scale: float, thickness: int, gap: float,
+                     width: int, height: int) -> np.ndarray:
+    """Coverage (0-255, ``(height, width)`` uint8) of ``text`` centred on a plate, drawn
+    letter by letter ``gap`` px apart, then slanted and stretched about its centre.
+
+    A letter's pen position in the unspaced line is the width of the text up
+    to and including it less its own width (where ``cv2.putText`` puts it).
+    """
+    face = look.face
+    th = cv2.getTextSize(text, face, scale, thickness)[0][1]
+    line_w = round(_line_width(text, face, scale, thickness, gap))
+    canvas_w = max(width, line_w + 2 * thickness + 2)  # the unstretched line may be wider
+    canvas = np.zeros((height, canvas_w), dtype=np.uint8)
+    x0, y = (canvas_w - line_w) // 2, (height + th) // 2
+    for i, ch in enumerate(text):
+        if ch == " ":
+            continue
+        pen = (cv2.getTextSize(text[:i + 1], face, scale, thickness)[0][0]
+               - cv2.getTextSize(ch, face, scale, thickness)[0][0])
+        cv2.putText(canvas, ch, (x0 + pen + round(i * gap), y), face, scale, 255, thickness,
+                    cv2.LINE_AA)
+    # x' = width/2 + stretch * (x - canvas_w/2) + slant * (middle - y), y' = y
+    middle = y - th / 2
+    M = np.array([[look.stretch, -look.slant,
+                   width / 2 - look.stretch * canvas_w / 2 + look.slant * middle],
+                  [0.0, 1.0, 0.0]])
+    return cv2.warpAffine(canvas, M, (width, height), flags=cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
 @functools.lru_cache(maxsize=64)  # ~0.5 MB each
-def _plate_mipmaps(text: str, width_px: int, height_px: int) -> tuple[np.ndarray, ...]:
-    """The texture and its successive INTER_AREA halvings (for anti-aliased warping)."""
-    base = sign_plate_image(text, width_px, height_px)
+def _plate_mipmaps(text: str, width_px: int, height_px: int,
+                   style: tuple = (DEFAULT_PLATE, DEFAULT_INK, "duplex", 0.0)
+                   ) -> tuple[np.ndarray, ...]:
+    """The texture and its successive INTER_AREA halvings (for anti-aliased warping).
+
+    ``style`` is ``(plate, ink, font, spacing)`` as :func:`sign_plate_image` takes them.
+    """
+    plate, ink, font, spacing = style
+    base = sign_plate_image(text, width_px, height_px, plate=plate, ink=ink, font=font,
+                            spacing=spacing)
     base.setflags(write=False)
     levels = [base]
     while levels[-1].shape[1] > 16 and levels[-1].shape[0] > 8:
@@ -647,7 +790,16 @@ def visible_signs(world: World, cam_pose, tilt: float, zoom: float,
 # that fixed direction instead and is not drawn from behind. Objects are
 # visual only: they have no walls, so the sonar and the robot's physics do not
 # see them; walls in front of them hide them column by column, as for plates.
+# An object's optional ``scale`` multiplies the catalogue's width and height
+# (not its elevation), ``light`` its brightness, and ``cover`` (0..0.8) puts a
+# plain box of the billboard's width on the floor just in front of it, up to
+# that fraction of the object's height: the box hides the picture's lower
+# part, and the ground truth counts only the part above the box.
 OBJECT_TOLERANCE = 0.02  # m (along the ray): a wall this close in front of a billboard still lets it show
+COVER_BGR = (105, 115, 125)  # a covering box's colour before lighting: a grey-brown desk front
+# (as large as a texture need be to keep its half-texel edges under a pixel)
+_COVER_LEVELS = (np.full((256, 256, 3), COVER_BGR, dtype=np.uint8),)
+_COVER_LEVELS[0].setflags(write=False)
 
 
 @dataclass
@@ -661,8 +813,10 @@ class _ObjectView:
     depth: float  # forward depth of the centre (m)
     columns: np.ndarray  # (W,) bool: columns where the object is in front of the walls
     visible_fraction: float
-    bbox: tuple[int, int, int, int]
+    bbox: tuple[int, int, int, int] | None  # None: only the covering box shows
     image: Any  # path of the catalogue picture (the texture cache key)
+    light: float = 1.0  # brightness factor
+    box: np.ndarray | None = None  # (4, 2) px: the covering box's corners, if any
 
 
 def _world_objects(world: World) -> list:
@@ -711,7 +865,9 @@ def _object_views(world: World, cam_pose, tilt: float, zoom: float, spec: Camera
         cos_view = float(normal @ np.array([px - ox, py - oy])) / distance
         if cos_view <= 0:
             continue  # a fixed-facing object seen from behind or edge-on
-        corners3 = object_corners(ox, oy, facing, entry.width, entry.height, entry.elevation)
+        size = float(getattr(obj, "scale", 1.0))
+        ow, oh = entry.width * size, entry.height * size
+        corners3 = object_corners(ox, oy, facing, ow, oh, entry.elevation)
         u, v, depth = project_points(corners3, cam_pose, tilt, zoom, spec)
         if np.any(depth < NEAR):
             continue
@@ -734,16 +890,41 @@ def _object_views(world: World, cam_pose, tilt: float, zoom: float, spec: Camera
         if footprint is None:
             continue
         fraction, bbox = footprint
+        cover, box = float(getattr(obj, "cover", 0.0)), None
+        if cover > 0:
+            box_top = entry.elevation + cover * oh
+            bu, bv, _ = project_points(object_corners(ox, oy, facing, ow, box_top),
+                                       cam_pose, tilt, zoom, spec)
+            box = np.stack([bu, bv], axis=1)
+            fraction, bbox = _uncovered_footprint(u, v, bv[:2], cover, columns, height)
         bearing = _bearing(yaw, ox - px, oy - py)
-        centre_z = entry.elevation + entry.height / 2
+        centre_z = entry.elevation + oh / 2
         _, _, centre_depth = project_points(np.array([[ox, oy, centre_z]]), cam_pose,
                                             tilt, zoom, spec)
         views.append(_ObjectView(
             index=i, label=obj.label, bearing=bearing, distance=distance,
             viewing_angle=math.acos(min(1.0, cos_view)), corners=np.stack([u, v], axis=1),
             depth=float(centre_depth[0]), columns=columns, visible_fraction=float(fraction),
-            bbox=bbox, image=entry.image))
+            bbox=bbox, image=entry.image, light=float(getattr(obj, "light", 1.0)), box=box))
     return views
+
+
+def _uncovered_footprint(u: np.ndarray, v: np.ndarray, v_cover: np.ndarray, cover: float,
+                         columns: np.ndarray, height: int
+                         ) -> tuple[float, tuple[int, int, int, int] | None]:
+    """The visible fraction and pixel box of a billboard whose lower ``cover`` is hidden.
+
+    ``u, v`` are the billboard's projected corners (TL, TR, BR, BL) and
+    ``v_cover`` the image rows of the covering box's top corners (TL, TR); the
+    visible part is the quad above them, and the fraction is of the whole
+    billboard. Returns ``(0.0, None)`` when none of the part above the box shows.
+    """
+    v_up = np.array([v[0], v[1], v_cover[1], v_cover[0]])
+    footprint = _footprint(u, v_up, columns, height)
+    if footprint is None:
+        return 0.0, None
+    fraction, bbox = footprint
+    return (1.0 - cover) * fraction, bbox
 
 
 def visible_objects(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
@@ -752,7 +933,8 @@ def visible_objects(world: World, cam_pose, tilt: float, zoom: float, spec: Came
 
     An object is reported when its centre is within ``spec.max_range``
     (horizontal distance), none of its corners is behind the image plane, and
-    some of it falls inside the image in front of the walls.
+    some of it falls inside the image in front of the walls and above its
+    covering box (an object's ``cover``, see the objects section above).
 
     Parameters
     ----------
@@ -770,8 +952,10 @@ def visible_objects(world: World, cam_pose, tilt: float, zoom: float, spec: Came
     ``bearing`` (rad, CCW positive from the optical axis), ``distance`` (m,
     horizontal, camera to the object's centre), ``depth`` (m, forward),
     ``viewing_angle`` (rad, 0 for sprites), ``bbox`` (inclusive px box of the
-    visible part), ``apparent_width`` and ``apparent_height`` (px, unclipped),
-    ``corners`` ((4, 2) px, TL TR BR BL, unclipped) and ``visible_fraction``.
+    visible part, above any covering box), ``apparent_width`` and
+    ``apparent_height`` (px, unclipped, of the whole object at its ``scale``),
+    ``corners`` ((4, 2) px, TL TR BR BL, unclipped) and ``visible_fraction``
+    (of the whole object; a cover of 0.5 halves it).
     """
     if not _world_objects(world):
         return []
@@ -780,6 +964,8 @@ def visible_objects(world: World, cam_pose, tilt: float, zoom: float, spec: Came
     wall_t, _ = cast_rays(cam_pose[:2], cam_pose[2] + angles, world.segments)
     out = []
     for view in _object_views(world, cam_pose, tilt, zoom, spec, wall_t, angles, catalogue):
+        if view.bbox is None:  # only its covering box is in view
+            continue
         u, v = view.corners[:, 0], view.corners[:, 1]
         out.append({
             "index": view.index, "label": view.label, "bearing": view.bearing,
@@ -810,10 +996,14 @@ def _object_mipmaps(image_path: Any) -> tuple[np.ndarray, ...]:
 
 
 def _draw_object(img: np.ndarray, depth: np.ndarray, view: _ObjectView, spec: CameraSpec) -> None:
-    """Warp an object's catalogue picture into ``img`` (in place), hidden behind walls."""
+    """Warp an object's catalogue picture into ``img`` (in place), hidden behind walls, then
+    its covering box, if any, in front of it."""
     shade = float(_light(np.array(view.depth))) * (0.75 + 0.25 * math.cos(view.viewing_angle))
+    shade *= view.light
     _warp_texture(img, depth, _object_mipmaps(view.image), view.corners, view.columns, shade,
                   view.depth, spec)
+    if view.box is not None:
+        _warp_texture(img, depth, _COVER_LEVELS, view.box, view.columns, shade, view.depth, spec)
 
 
 # ---- rendering -----------------------------------------------------------------------------
@@ -829,7 +1019,9 @@ def render(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
     Parameters
     ----------
     world : World
-        Walls (capsules) and sign plates.
+        Walls (capsules), sign plates (each in its colours, font and letter
+        spacing), objects, and ``colours`` (optional: the building's wall,
+        floor, ceiling and skirting colours in place of the defaults).
     cam_pose : (x, y, yaw)
         Camera pose in the world (m, m, rad); see :func:`camera_pose`.
     tilt : float
@@ -907,7 +1099,8 @@ def render(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
         np.copyto(shade[:r1], np.broadcast_to(f32(0.95) * _light(ceil_d), mask.shape), where=mask)
         np.copyto(depth[:r1], np.broadcast_to(ceil_d, mask.shape), where=mask)
         cls[:r1][mask] = 1
-    img = cv2.multiply(_PALETTE.take(cls, axis=0), cv2.merge([shade, shade, shade]))
+    palette = _palette(getattr(world, "colours", None))
+    img = cv2.multiply(palette.take(cls, axis=0), cv2.merge([shade, shade, shade]))
 
     # sign plates and objects, far to near
     views: list = _plate_views(world, (px, py, yaw), tilt, zoom, spec, wall_t, angles)
@@ -924,6 +1117,22 @@ def render(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
     if spec.noise_std > 0:
         img += _gaussian_noise(img.shape, spec.noise_std, rng)
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def _palette(colours: Mapping[str, Any] | None) -> np.ndarray:
+    """The scene's colours by pixel class (4, 3) BGR: ``_PALETTE`` with a world's overrides.
+
+    ``colours`` maps ``wall``, ``floor``, ``ceiling`` and ``skirting`` to RGB
+    0-255 (``World.colours``); unknown keys are ignored, and without any the
+    default palette itself is returned.
+    """
+    if not colours:
+        return _PALETTE
+    palette = _PALETTE.copy()
+    for key, row in _PALETTE_ROWS.items():
+        if key in colours:
+            palette[row] = _bgr(colours[key])
+    return palette
 
 
 def _gaussian_noise(shape: tuple[int, ...], std: float, rng: np.random.Generator) -> np.ndarray:
@@ -944,7 +1153,8 @@ def _draw_plate(img: np.ndarray, depth: np.ndarray, view: _PlateView, spec: Came
     """Warp a plate's texture into ``img`` (in place), hidden where walls are in front."""
     sign = view.sign
     tex_h = max(8, round(TEXTURE_WIDTH * sign.height / sign.width))
-    levels = _plate_mipmaps(sign.text, TEXTURE_WIDTH, tex_h)
+    style = (tuple(sign.plate), tuple(sign.ink), sign.font, float(sign.spacing))
+    levels = _plate_mipmaps(sign.text, TEXTURE_WIDTH, tex_h, style)
     shade = float(_light(np.array(view.depth))) * (0.75 + 0.25 * math.cos(view.viewing_angle))
     _warp_texture(img, depth, levels, view.corners, view.columns, shade, view.depth, spec)
 

@@ -1,6 +1,7 @@
 """The synthetic PTZ camera: geometry, visibility, occlusion, zoom/pan, degradation."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import cv2
@@ -19,9 +20,10 @@ from sim2d.camera import (
     plate_corners,
     render,
     sign_plate_image,
+    visible_objects,
     visible_signs,
 )
-from sim2d.world import Sign, make_world
+from sim2d.world import SIGN_FONTS, Sign, WorldObject, make_world
 
 SPEC = CameraSpec()
 HALF = 0.05  # half the default wall thickness of make_world
@@ -435,3 +437,167 @@ def test_sign_plate_image_has_dark_text_on_a_light_plate():
     assert 0.45 < height <= 0.65  # letters ~0.6 of the plate's height
     cols = np.flatnonzero((inner < 80).any(axis=0)) + 25
     assert abs((cols[0] + cols[-1]) / 2 - 300) < 10  # centred
+
+
+# ---- plate styles ------------------------------------------------------------------------------
+DARK_PLATE = {"plate": (30, 40, 90), "ink": (245, 245, 230)}  # RGB: light letters on navy
+
+
+def ink_columns(img, plate_grey):
+    """Columns holding letters (far from the plate's grey level) inside a 600 x 200 plate's
+    10 px border and the 2 px next to it."""
+    g = grey(img)[12:-12, 12:-12]
+    return np.flatnonzero((np.abs(g - plate_grey) > 80).any(axis=0)) + 12
+
+
+def test_the_default_style_is_the_explicit_one_and_the_old_look():
+    img = sign_plate_image("LAB 3", 600, 200)
+    explicit = sign_plate_image("LAB 3", 600, 200, plate=(238, 238, 238), ink=(15, 15, 15),
+                                font="duplex", spacing=0.0)
+    assert np.array_equal(img, explicit)
+    assert img[0, 300].tolist() == [40, 40, 40]  # the dark grey border of old
+    assert img[25, 300].tolist() == [238, 238, 238]  # the light plate
+
+
+def test_a_light_on_dark_plate_has_light_letters_and_border_on_a_dark_plate():
+    img = sign_plate_image("LAB 3", 600, 200, **DARK_PLATE)
+    assert img[25, 300].tolist() == [90, 40, 30]  # BGR of the plate
+    assert img[0, 300].tolist() == [205, 220, 220]  # the ink, 25 levels towards the plate
+    inner = grey(img)[25:175, 25:575]
+    assert (inner < 80).mean() > 0.6 and (inner > 200).mean() > 0.05  # light on dark
+    rows = np.flatnonzero((inner > 200).any(axis=1))
+    assert 0.45 < (rows[-1] - rows[0] + 1) / 200 <= 0.65  # letters ~0.6 of the height
+
+
+def test_a_plate_is_drawn_in_its_own_colours():
+    dark = dataclasses.replace(FRONT, **DARK_PLATE)
+    world = room(-3, -3, 2, 3, [dark])
+    tilt = look_at_tilt(2 - HALF)
+    x0, y0, x1, y1 = visible_signs(world, (0, 0, 0), tilt, 1.0, SPEC)[0]["bbox"]
+    region = grey(shot(world, (0, 0, 0), tilt))[y0 + 3:y1 - 2, x0 + 3:x1 - 2]
+    assert (region < 80).mean() > 0.5 and (region > 180).mean() > 0.05
+
+
+def test_each_font_draws_a_different_texture_that_stays_on_the_plate():
+    textures = {font: sign_plate_image("NURSES STATION", 600, 200, font=font)
+                for font in SIGN_FONTS}
+    for i, a in enumerate(SIGN_FONTS):
+        for b in SIGN_FONTS[i + 1:]:
+            assert not np.array_equal(textures[a], textures[b]), (a, b)
+    for font, img in textures.items():
+        cols = ink_columns(img, 238)
+        assert len(cols) > 300, font  # letters across the plate
+        assert cols[0] > 12 and cols[-1] < 587, font  # none on or next to the border
+
+
+def test_letter_spacing_spreads_short_texts_and_fits_long_ones():
+    def extent(img):
+        cols = ink_columns(img, 238)
+        return cols[-1] - cols[0] + 1, cols
+
+    plain, _ = extent(sign_plate_image("LAB 3", 600, 200))
+    spaced, _ = extent(sign_plate_image("LAB 3", 600, 200, spacing=0.5))
+    assert spaced > 1.3 * plain  # ~0.5 letter heights more in each of 4 gaps
+    long_spaced, cols = extent(sign_plate_image("NURSES STATION", 600, 200, spacing=0.5))
+    assert cols[0] > 12 and cols[-1] < 587  # fitted inside the border...
+    letters = np.flatnonzero((grey(sign_plate_image("NURSES STATION", 600, 200, spacing=0.5))
+                              [12:-12, 12:-12] < 100).any(axis=1))
+    unspaced = np.flatnonzero((grey(sign_plate_image("NURSES STATION", 600, 200))
+                               [12:-12, 12:-12] < 100).any(axis=1))
+    assert len(letters) < 0.8 * len(unspaced)  # ... by smaller letters
+
+
+def test_a_bad_plate_style_is_refused():
+    with pytest.raises(ValueError, match="font"):
+        sign_plate_image("LAB", font="gothic")
+    with pytest.raises(ValueError, match="spacing"):
+        sign_plate_image("LAB", spacing=-0.1)
+
+
+def test_the_reader_reads_light_on_dark_and_simplex_plates_up_close():
+    from blocks.signs.read import SignReader
+    from semantic.vocabulary import load_vocabulary
+
+    reader = SignReader(load_vocabulary())
+    for sign in (Sign("LIBRARY", 2 - HALF, 0.0, math.pi, **DARK_PLATE),
+                 Sign("OFFICE 102", 2 - HALF, 0.0, math.pi, font="simplex")):
+        world = room(-3, -3, 2, 3, [sign])
+        cam, tilt, zoom = (0.8, 0.0, 0.0), look_at_tilt(1.2 - HALF), 1.5  # plate ~60 px high
+        truth = visible_signs(world, cam, tilt, zoom, SPEC)[0]
+        reading = reader.read(shot(world, cam, tilt, zoom), corners=truth["corners"])
+        assert reading.text == sign.text and reading.confidence > 0.75, (sign, reading)
+
+
+# ---- object scale, light and cover ---------------------------------------------------------------
+QUIET = CameraSpec(noise_std=0.0)
+PRINTER_TILT = math.atan2(0.55 - SPEC.mount_z, 4.0)  # the printer (1.1 m high) 4 m ahead
+
+
+def with_objects(*objects):
+    world = room(-1, -4, 8, 4)
+    world.objects = list(objects)
+    return world
+
+
+def test_an_object_at_scale_two_looks_twice_as_large():
+    one = visible_objects(with_objects(WorldObject("Printer", 4.0, 0.0)), (0, 0, 0),
+                          PRINTER_TILT, 1.0, SPEC)[0]
+    two = visible_objects(with_objects(WorldObject("Printer", 4.0, 0.0, scale=2.0)), (0, 0, 0),
+                          PRINTER_TILT, 1.0, SPEC)[0]
+    assert two["apparent_width"] == pytest.approx(2 * one["apparent_width"], rel=1e-6)
+    assert two["apparent_height"] == pytest.approx(2 * one["apparent_height"], rel=1e-6)
+    assert two["corners"][2, 1] == pytest.approx(one["corners"][2, 1])  # both on the floor
+    bare = with_objects()
+    drawn = [extent(np.abs(grey(shot(w, (0, 0, 0), PRINTER_TILT, spec=QUIET))
+                           - grey(shot(bare, (0, 0, 0), PRINTER_TILT, spec=QUIET))) > 10)
+             for w in (with_objects(WorldObject("Printer", 4.0, 0.0)),
+                       with_objects(WorldObject("Printer", 4.0, 0.0, scale=2.0)))]
+    assert drawn[1] == pytest.approx(2 * drawn[0], rel=0.1)
+
+
+def test_cover_hides_the_lower_half_behind_a_plain_box():
+    open_world = with_objects(WorldObject("Printer", 4.0, 0.0))
+    covered = with_objects(WorldObject("Printer", 4.0, 0.0, cover=0.5))
+    full = visible_objects(open_world, (0, 0, 0), PRINTER_TILT, 1.0, SPEC)[0]
+    half = visible_objects(covered, (0, 0, 0), PRINTER_TILT, 1.0, SPEC)[0]
+    assert full["visible_fraction"] == pytest.approx(1.0)
+    assert half["visible_fraction"] == pytest.approx(0.5, abs=0.02)
+    x0, top, x1, bottom = full["bbox"]
+    middle = (top + bottom) / 2
+    assert half["bbox"][:3] == (x0, top, x1) and abs(half["bbox"][3] - middle) <= 1
+    assert half["apparent_height"] == full["apparent_height"]  # the object is no smaller
+    a = shot(open_world, (0, 0, 0), PRINTER_TILT, spec=QUIET).astype(int)
+    b = shot(covered, (0, 0, 0), PRINTER_TILT, spec=QUIET).astype(int)
+    upper = slice(top, round(middle) - 4)
+    assert np.array_equal(a[upper], b[upper])  # the picture above the box is untouched
+    lower = (slice(round(middle) + 3, bottom - 2), slice(x0 + 3, x1 - 2))
+    assert grey(a.astype(np.uint8))[lower].std() > 20  # the picture's lower half...
+    assert grey(b.astype(np.uint8))[lower].std() < 2  # ... is behind one plain colour
+    assert np.abs(a[lower] - b[lower]).mean() > 20
+
+
+def test_light_one_half_darkens_the_object_by_half():
+    full = with_objects(WorldObject("Printer", 4.0, 0.0))
+    dim = with_objects(WorldObject("Printer", 4.0, 0.0, light=0.5))
+    x0, y0, x1, y1 = visible_objects(full, (0, 0, 0), PRINTER_TILT, 1.0, SPEC)[0]["bbox"]
+    inside = (slice(y0 + 3, y1 - 2), slice(x0 + 3, x1 - 2))
+    a = grey(shot(full, (0, 0, 0), PRINTER_TILT, spec=QUIET))[inside].astype(float)
+    b = grey(shot(dim, (0, 0, 0), PRINTER_TILT, spec=QUIET))[inside].astype(float)
+    bright = a > 60
+    assert np.median(b[bright] / a[bright]) == pytest.approx(0.5, abs=0.03)
+
+
+# ---- building colours ----------------------------------------------------------------------------
+def test_world_colours_repaint_the_walls_and_nothing_else():
+    plain = room(-1, -4, 8, 4)  # the front wall 8 m ahead: ceiling, wall and floor in view
+    blue = room(-1, -4, 8, 4)
+    blue.colours = {"wall": (40, 60, 200)}  # RGB
+    a, b = (shot(w, (0, 0, 0), spec=QUIET).astype(int) for w in (plain, blue))
+    wall = (slice(60, 120), slice(100, 220))
+    assert (a[wall][..., 2] > a[wall][..., 0] + 20).all()  # beige: more red than blue
+    assert (b[wall][..., 0] > b[wall][..., 2] + 80).all()  # blue (the image is BGR)
+    assert np.array_equal(a[:15], b[:15]) and np.array_equal(a[-60:], b[-60:])  # ceiling, floor
+    brown = room(-1, -4, 8, 4)
+    brown.colours = {"floor": (150, 100, 40)}
+    c = shot(brown, (0, 0, 0), spec=QUIET).astype(int)
+    assert (c[-60:][..., 2] > c[-60:][..., 0] + 40).all() and np.array_equal(a[wall], c[wall])
