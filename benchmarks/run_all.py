@@ -17,6 +17,7 @@ import bench_sim  # noqa: E402
 import object_recogniser  # noqa: E402
 import sign_detector  # noqa: E402
 import sign_reader  # noqa: E402
+import bench_sweep  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -31,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
                          ("maps", bench_maps), ("sign_detector", sign_detector),
                          ("sign_reader", sign_reader), ("object_recogniser", object_recogniser),
                          ("reasoner", bench_reasoner), ("planner", bench_planner),
-                         ("query", bench_query)):
+                         ("query", bench_query), ("sweep", bench_sweep)):
         extra = ["--json", str(args.results / f"{name}.json")] if args.results else []
         if name == "engine" and args.quick:
             extra += ["--seconds", "0.01", "--repeats", "1"]

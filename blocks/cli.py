@@ -15,7 +15,7 @@ from typing import Any
 
 import click
 
-from .core.atomic import atomic_write_json, atomic_write_text
+from .core.atomic import atomic_write_text
 from .core.errors import SemmapError
 
 
@@ -78,44 +78,34 @@ def run(graph: str, overrides: tuple[str, ...], steps: int | None, seed: int,
         out_dir: str | None, records: tuple[str, ...], strict: bool, world: str | None,
         quiet: bool) -> None:
     """Run GRAPH in lockstep and write run.json and the blocks' outputs."""
-    from .core.runner import BlockFailure, Runner
+    from .core.runner import BlockFailure
+    from .core.session import run_graph
 
     flat = _load(graph, overrides, world)
     out = Path(out_dir) if out_dir else Path("runs") / flat.name
     n_steps = steps if steps is not None else flat.steps
-    runner = Runner(flat, seed=seed, out_dir=out, records=list(records), strict=strict)
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out / "run.json", runner.summary({"status": "running"}))
     bar = _make_bar(n_steps, flat.dt) if _progress_enabled(quiet) else None
-    failure: BlockFailure | SemmapError | None = None
     try:
-        runner.run(n_steps, on_tick=bar.tick if bar else None)
-    except (BlockFailure, SemmapError) as exc:
-        failure = exc
+        outcome = run_graph(flat, out, seed=seed, steps=n_steps, records=records,
+                            strict=strict, on_tick=bar.tick if bar else None,
+                            on_ticks_end=bar.close if bar else None)
     finally:
         if bar:
-            bar.close()
-        finish_errors = runner.finish()
-        extra: dict[str, Any] = {"finish_errors": finish_errors} if finish_errors else {}
-        if isinstance(failure, BlockFailure):
-            atomic_write_text(out / "error.log", failure.traceback)
-            extra["error"] = {"node": failure.node, "tick": failure.tick,
-                              "message": str(failure), "traceback": str(out / "error.log")}
-        elif failure is not None:
-            extra["error"] = {"message": str(failure)}
-        atomic_write_json(out / "run.json", runner.summary(extra))
+            bar.close()  # also when the graph could not be built
+    failure = outcome.failure
     if isinstance(failure, BlockFailure):
         raise _Failure(f"{failure}. Outputs written so far are in {out}/; the full traceback "
                        f"is in {out / 'error.log'}.", 1)
     if failure is not None:
         raise failure
-    for message in finish_errors:
+    for message in outcome.finish_errors:
         click.echo(f"warning: {message}", err=True)
-    if runner.status == "interrupted":
-        click.echo(f"interrupted at tick {runner.tick}; outputs so far are in {out}/", err=True)
+    if outcome.status == "interrupted":
+        click.echo(f"interrupted at tick {outcome.summary['ticks']}; outputs so far are in "
+                   f"{out}/", err=True)
         raise _Failure("", 130)
     if not quiet:
-        _print_summary(runner, out)
+        _print_summary(outcome.summary, out)
     else:
         click.echo(str(out))
 
@@ -154,8 +144,7 @@ def _make_bar(total: int | None, dt: float) -> _Bar:
     return _Bar(total, dt)
 
 
-def _print_summary(runner: Any, out: Path) -> None:
-    s = runner.summary()
+def _print_summary(s: dict[str, Any], out: Path) -> None:
     ratio = f"{s['x_real_time']}x real time" if s["x_real_time"] else ""
     reason = f" ({s['stop_reason']})" if s["stop_reason"] else ""
     click.echo(f"{s['status']}{reason}: {s['ticks']} ticks, {s['sim_time_s']:.3f} s simulated "

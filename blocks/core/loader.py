@@ -22,10 +22,11 @@ from .expr import ExprError, evaluate
 from .model import Endpoint, FlatEdge, FlatGraph, FlatNode, Origin
 from .params import Param, to_float
 from .registry import REGISTRY, Registry, SubgraphType
+from .scores import parse_scores
 from .yamlsrc import LineDict, line_of, load_yaml_file
 
 TOP_KEYS = ("semmap", "name", "doc", "dt", "steps", "params", "inputs", "outputs",
-            "nodes", "edges")
+            "nodes", "edges", "scores")
 NODE_KEYS = ("id", "type", "include", "params", "period", "offset", "rate", "trigger", "doc")
 EDGE_KEYS = ("from", "to", "delay", "initial", "doc")
 ID_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
@@ -132,6 +133,7 @@ class GraphLoader:
             overrides=[{"set": o.text, "from": "--set"} for o in self.overrides],
             doc=str(doc.get("doc") or ""), groups=self.groups,
             exposed_outputs=self.exposed_outputs, subgraph_params=self.subgraph_params,
+            scores=parse_scores(doc.get("scores"), nodes, file=str(path)),
         )
 
     # ---- reading ----------------------------------------------------------------

@@ -80,6 +80,8 @@ class FlatGraph:
     subgraph_params: dict[str, tuple[Any, str]] = field(default_factory=dict)
     # Exposed outputs of subgraph instances, ``group.port`` -> the inner port.
     exposed_outputs: dict[str, Endpoint] = field(default_factory=dict)
+    # What a sweep summarises (blocks.core.scores.Score); only the top graph's count.
+    scores: list[Any] = field(default_factory=list)
 
     def incoming(self) -> dict[Endpoint, FlatEdge]:
         return {e.dst: e for e in self.edges}
@@ -116,4 +118,5 @@ class FlatGraph:
             ],
             "edges": [{"from": str(e.src), "to": str(e.dst), "origin": str(e.origin)}
                       for e in self.edges],
+            "scores": [s.as_dict() for s in self.scores],
         }

@@ -194,6 +194,30 @@ def generated_world(spec: str, folder: str | Path | None = None, *,
     from .building import generate_building
     target = Path(folder) if folder is not None else cache_dir()
     path = target / f"{name or f'{kind}-{seed}'}.yaml"
-    if name is not None or not path.is_file():
+    if name is not None:
         generate_building(kind, seed, path)
+    elif not path.is_file():
+        _generate_into_cache(kind, seed, path)
     return path
+
+
+def _generate_into_cache(kind: str, seed: int, path: Path) -> None:
+    """Generate beside the cache and move the files in, the world YAML last.
+
+    Runs in parallel (a sweep's workers) may ask for the same building at
+    once; each generates its own copy, and a reader who finds the YAML finds
+    its side files whole (the generator rewrites the YAML once it has the
+    commands, so it must not be read in the cache while being written).
+    """
+    import shutil
+    import tempfile
+    from .building import generate_building
+    path.parent.mkdir(parents=True, exist_ok=True)
+    scratch = Path(tempfile.mkdtemp(prefix=f".{path.stem}.", dir=path.parent))
+    try:
+        generate_building(kind, seed, scratch / path.name)
+        files = sorted(scratch.iterdir(), key=lambda f: f.name == path.name)  # YAML last
+        for file in files:
+            os.replace(file, path.parent / file.name)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
