@@ -22,7 +22,7 @@ other (these machines are noisy: read the ratio, not the milliseconds).
 **Scaling.** A small robot graph (``graphs/examples/wander.yaml`` on the
 corridor, 2,000 ticks: about a second of CPU per run) is swept over 8 seeds
 with one worker and then with two; the speed-up is the one-worker time over the two-worker time
-(2.0 would be perfect on this 2-core machine).
+(2.0 would be perfect on a machine with two free cores).
 
 Usage::
 

@@ -19,9 +19,13 @@ from .core.atomic import atomic_write_text
 from .core.errors import SemmapError
 
 
+def in_ci() -> bool:
+    """Whether this runs under CI (``CI`` set and not false): no progress displays there."""
+    return os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
+
+
 def _progress_enabled(quiet: bool) -> bool:
-    ci = os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
-    return not quiet and not ci and sys.stderr.isatty()
+    return not quiet and not in_ci() and sys.stderr.isatty()
 
 
 def _load(graph: str, overrides: tuple[str, ...] = (), world: str | None = None):

@@ -9,7 +9,7 @@ import os
 import signal
 import subprocess
 import sys
-import textwrap
+import re
 import time
 from pathlib import Path
 
@@ -183,14 +183,16 @@ def test_the_worst_runs_lie_on_the_bad_side_of_each_score():
 
 def test_the_summary_has_a_table_per_kind_and_names_the_unfinished():
     data = [{"run": "ring-1-s0", "kind": "ring", "status": "done", "m": 0.9},
-            {"run": "ring-2-s0", "kind": "ring", "status": "done", "m": 0.2},
+            {"run": "ring-2-s0", "kind": "ring", "status": "timeout", "m": 0.2},
+            {"run": "ring-3-s0", "kind": "ring", "status": "interrupted", "m": 0.0},
             {"run": "hall-3-s0", "kind": "hall", "status": "failed", "error": "bad | world"}]
     text = summary_markdown(data, [Score("coverage", "m", "higher")], title="T")
-    assert "3 runs: 2 done, 1 failed." in text
-    assert "| ring | 2 | 0.55 · 0.27 · 0.2 |" in text  # median · p10 · worst
-    assert "| hall | 1 | – · – · – |" in text
+    assert "4 runs: 1 done, 1 failed, 1 interrupted, 1 timeout." in text
+    assert "| ring | 2 | 0.55 · 0.27 · 0.2 |" in text  # median · p10 · worst; not interrupted
+    assert "| hall | 0 | – · – · – |" in text
     assert "ring-2-s0 (0.2), ring-1-s0 (0.9)" in text
     assert "| hall-3-s0 | failed | bad \\| world |" in text
+    assert "| ring-3-s0 | interrupted |" in text
 
 
 # ---- whole sweeps -------------------------------------------------------------------------------
@@ -331,6 +333,8 @@ def test_user_mistakes_are_one_paragraph(tiny, tmp_path):
         ((tiny, "--out", tmp_path / "c", "--address", "auto"), "Add --engine ray"),
         ((tiny,), "needs an output folder"),
         (("--report", tmp_path), "holds no sweep"),
+        ((tiny, "--worlds", tmp_path / "none.yaml", "--out", tmp_path / "d"), "none.yaml"),
+        ((tiny, "--worlds", "", "--out", tmp_path / "e"), "empty world spec"),
     ]
     for args, message in cases:
         proc = sweep(*args, timeout=120)
@@ -338,10 +342,11 @@ def test_user_mistakes_are_one_paragraph(tiny, tmp_path):
         assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
 
 
-def test_the_sweep_doc_example_names_real_options():
+def test_the_docs_table_lists_every_option_of_the_command():
+    from blocks.sweep.commands import sweep as command
     doc = (Path(__file__).resolve().parents[1] / "docs" / "sweep.md").read_text()
-    assert "semmap sweep graphs/semantic_mapping.yaml" in doc
-    for option in ("--worlds", "--seeds", "--out", "--jobs", "--engine", "--timeout",
-                   "--retry-failed", "--report"):
-        assert option in doc, option
-    assert textwrap.dedent(doc)  # read as text
+    documented = set(re.findall(r"^\| `(--[a-z-]+)", doc, re.M))
+    documented |= set(re.findall(r"`(--[a-z-]+) [A-Z.]+`", doc))
+    options = {opt for p in command.params for opt in getattr(p, "opts", [])
+               if opt.startswith("--")} - {"--help"}
+    assert options <= documented, options - documented

@@ -86,7 +86,7 @@ def parse_scores(raw: Any, node_paths: Iterable[str], *, file: str) -> list[Scor
         raise GraphError("scores must be a list of {metric, better} entries", file=file,
                          line=line_of(raw), field="scores",
                          hint="For example: scores: [{metric: world.collisions, better: lower}]")
-    paths = sorted(node_paths, key=len, reverse=True)
+    paths = list(node_paths)
     scores: list[Score] = []
     for item in raw:
         line = line_of(item) or line_of(raw)

@@ -2,7 +2,6 @@
 :func:`blocks.sweep.report_sweep`, with its progress display."""
 from __future__ import annotations
 
-import os
 import sys
 import time
 
@@ -35,7 +34,7 @@ class _BarProgress:
         self.bar = tqdm(total=total, unit="run", desc="sweep", dynamic_ncols=True)
 
     def done(self, task: SweepTask, outcome: TaskOutcome) -> None:
-        if outcome.status not in ("done", "stopped", "interrupted"):
+        if outcome.failed:
             self.failed += 1
             self.bar.write(f"{task.name}: {outcome.status}: {outcome.error}")
         self.bar.update(1)
@@ -64,7 +63,7 @@ class _LineProgress:
 
     def done(self, task: SweepTask, outcome: TaskOutcome) -> None:
         self.count += 1
-        if outcome.status not in ("done", "stopped", "interrupted"):
+        if outcome.failed:
             self.failed += 1
         elapsed = time.monotonic() - self.began
         left = elapsed / self.count * (self.total - self.count)
@@ -82,8 +81,8 @@ class _LineProgress:
 
 
 def _progress(quiet: bool):
-    ci = os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
-    if quiet or ci:
+    from blocks.cli import in_ci
+    if quiet or in_ci():
         return None
     return _BarProgress() if sys.stderr.isatty() else _LineProgress()
 

@@ -1,19 +1,21 @@
 """The local engine: a pool of worker processes on this machine (pebble's ``ProcessPool``).
 
 Each worker is a fresh interpreter (``spawn``) that runs one task at a time
-and keeps its imports between tasks. pebble kills a worker whose task
-outlives its hard limit and replaces it, and reports a worker that died
-(a crash in native code, the kernel's OOM killer) as its task's failure, so one
-bad run never stops the others.
+and keeps its imports between tasks; pebble starts its workers with Ctrl-C
+ignored, so only the parent decides how a sweep stops. pebble kills a worker
+whose task outlives its hard limit and replaces it, and reports a worker that
+died (a crash in native code, the kernel's OOM killer) as its task's failure,
+so one bad run never stops the others. At most ``jobs`` tasks are handed to
+the pool at a time, so nothing queued inside pebble starts after a stop.
 
-Ctrl-C: the first stops the sweep cleanly (queued runs are dropped, running
-ones end as ``interrupted`` with their outputs written); a second kills the
+Ctrl-C: the first stops the sweep cleanly (nothing new starts, running runs
+end as ``interrupted`` with their outputs written); a second kills the
 workers at once.
 """
 from __future__ import annotations
 
 import multiprocessing
-from concurrent.futures import CancelledError, TimeoutError, as_completed
+from concurrent.futures import FIRST_COMPLETED, CancelledError, TimeoutError, wait
 from pathlib import Path
 from typing import Callable
 
@@ -69,32 +71,42 @@ def run_local(tasks: list[SweepTask], config: SweepConfig, root: str | Path, *, 
     context = multiprocessing.get_context("spawn")
     stop = context.Event()
     hard = hard_limit(config.timeout_s)
-    with ProcessPool(max_workers=jobs, initializer=init_pool_worker, initargs=(stop,),
-                     context=context) as pool:
-        futures = {pool.schedule(run_task_in_pool, args=(task, config, str(root)),
-                                 timeout=hard): task for task in tasks}
+    queue = list(tasks)
+    inflight: dict = {}  # future -> task
+
+    def finish(done) -> None:
+        for future in done:
+            task = inflight.pop(future)
+            on_done(task, _outcome(future, task, config, root, hard))
+
+    pool = ProcessPool(max_workers=jobs, initializer=init_pool_worker, initargs=(stop,),
+                       context=context)
+    try:
+        while queue or inflight:
+            while queue and len(inflight) < jobs:
+                task = queue.pop(0)
+                inflight[pool.schedule(run_task_in_pool, args=(task, config, str(root)),
+                                       timeout=hard)] = task
+            done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
+            finish(done)
+        return False
+    except KeyboardInterrupt:
+        stop.set()
+        if on_stopping is not None:
+            on_stopping(len(inflight))
         try:
-            for future in as_completed(futures):
-                task = futures[future]
-                on_done(task, _outcome(future, task, config, root, hard))
-            return False
+            while inflight:
+                done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
+                finish(done)
         except KeyboardInterrupt:
-            stop.set()
-            # cancel() on a running pebble future kills its worker: only drop the queued
-            running = [f for f in futures if not f.done() and (f.running() or not f.cancel())]
-            if on_stopping is not None:
-                on_stopping(len(running))
-            try:
-                for future in as_completed(running):
-                    task = futures[future]
-                    on_done(task, _outcome(future, task, config, root, hard))
-            except KeyboardInterrupt:
-                pool.stop()
-                for future in running:
-                    if not future.done() or future.cancelled():
-                        record_failure(root, futures[future], config, "interrupted",
-                                       "killed by a second Ctrl-C")
-            return True
+            pool.stop()  # kills the workers; join() below waits for them
+            for task in inflight.values():
+                record_failure(root, task, config, "interrupted", "killed by a second Ctrl-C")
+        return True
+    finally:
+        if pool.active:
+            pool.close()
+        pool.join()
 
 
 def _outcome(future, task: SweepTask, config: SweepConfig, root: str | Path,

@@ -1,8 +1,9 @@
 """The Ray engine: the same tasks as Ray tasks, on a local cluster started for the
 sweep or on an existing one (``--address``).
 
-Every task asks for one CPU; at most ``jobs`` run at once (default: the
-cluster's CPUs), so each task's clock starts when it does. The workers write
+Every task asks for one CPU; at most ``jobs`` are in flight at once
+(default: the cluster's CPUs). A task's hard time limit counts from when its
+run.json shows it running, not from when it was queued. The workers write
 into the sweep folder themselves, so on a cluster of several machines the
 folder must be on storage every node can write (a shared file system), as
 for Ray Tune's ``storage_path``; on one machine nothing is needed.
@@ -13,14 +14,17 @@ outputs written) and drops the queued ones; a second forces them.
 """
 from __future__ import annotations
 
+import json
 import logging
 import os
 import time
+import uuid
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 from .local import OnDone, hard_limit
-from .tasks import SweepConfig, SweepError, SweepTask
+from .tasks import SweepConfig, SweepError, SweepTask, run_dir
 from .worker import TaskOutcome, record_failure, run_task
 
 __all__ = ["require_ray", "run_ray"]
@@ -96,30 +100,32 @@ def run_ray(tasks: list[SweepTask], config: SweepConfig, root: str | Path, *,
             ray.shutdown()
 
 
+@dataclass
+class _InFlight:
+    """A submitted task; its clock starts when its run.json carries this try's token."""
+
+    task: SweepTask
+    attempt: str
+    began: float | None = None  # time.monotonic() when it was seen running
+
+
 def _drive(ray, remote, queue: list[SweepTask], config: SweepConfig, root: str, slots: int,
            on_done: OnDone, on_stopping: Callable[[int], None] | None) -> bool:
     """Keep ``slots`` tasks in flight until all have ended; kill those past the hard limit."""
     hard = hard_limit(config.timeout_s)
-    inflight: dict = {}  # ObjectRef -> (task, monotonic start)
+    inflight: dict = {}  # ObjectRef -> _InFlight
     try:
         while queue or inflight:
             while queue and len(inflight) < slots:
-                task = queue.pop(0)
-                inflight[remote.remote(task, config, root)] = (task, time.monotonic())
+                task, attempt = queue.pop(0), uuid.uuid4().hex
+                inflight[remote.remote(task, config, root, None, attempt)] = \
+                    _InFlight(task, attempt)
             ready, _ = ray.wait(list(inflight), num_returns=1, timeout=POLL_S)
             for ref in ready:
-                task, _ = inflight.pop(ref)
+                task = inflight.pop(ref).task
                 on_done(task, _outcome(ray, ref, task, config, root, "failed"))
             if hard is not None:
-                now = time.monotonic()
-                for ref, (task, began) in list(inflight.items()):
-                    if now - began > hard:
-                        ray.cancel(ref, force=True)
-                        inflight.pop(ref)
-                        message = (f"killed after {hard:g} s: it did not stop at its "
-                                   f"{config.timeout_s:g} s timeout")
-                        record_failure(root, task, config, "timeout", message)
-                        on_done(task, TaskOutcome(task.name, "timeout", message))
+                _kill_overdue(ray, inflight, hard, config, root, on_done)
         return False
     except KeyboardInterrupt:
         if on_stopping is not None:
@@ -130,13 +136,45 @@ def _drive(ray, remote, queue: list[SweepTask], config: SweepConfig, root: str, 
             while inflight:
                 ready, _ = ray.wait(list(inflight), num_returns=1, timeout=POLL_S)
                 for ref in ready:
-                    task, _ = inflight.pop(ref)
+                    task = inflight.pop(ref).task
                     on_done(task, _outcome(ray, ref, task, config, root, "interrupted"))
         except KeyboardInterrupt:
-            for ref, (task, _) in inflight.items():
+            for ref, entry in inflight.items():
                 ray.cancel(ref, force=True)
-                record_failure(root, task, config, "interrupted", "killed by a second Ctrl-C")
+                record_failure(root, entry.task, config, "interrupted",
+                               "killed by a second Ctrl-C")
         return True
+
+
+def _kill_overdue(ray, inflight: dict, hard: float, config: SweepConfig, root: str,
+                  on_done: OnDone) -> None:
+    """Start the clocks of tasks seen running; force-cancel those past ``hard`` seconds.
+
+    A task queued in the cluster has not begun, so its clock must not run:
+    it starts when the task's run.json shows this try's token (which also
+    tells this try from an earlier one's leftover file).
+    """
+    now = time.monotonic()
+    for ref, entry in list(inflight.items()):
+        if entry.began is None:
+            if _attempt_in_run_json(root, entry.task) == entry.attempt:
+                entry.began = now
+            continue
+        if now - entry.began > hard:
+            ray.cancel(ref, force=True)
+            inflight.pop(ref)
+            message = (f"killed after {hard:g} s: it did not stop at its "
+                       f"{config.timeout_s:g} s timeout")
+            record_failure(root, entry.task, config, "timeout", message)
+            on_done(entry.task, TaskOutcome(entry.task.name, "timeout", message))
+
+
+def _attempt_in_run_json(root: str, task: SweepTask) -> str | None:
+    try:
+        doc = json.loads((run_dir(root, task) / "run.json").read_text())
+        return doc["sweep"].get("attempt")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
 
 
 def _outcome(ray, ref, task: SweepTask, config: SweepConfig, root: str,

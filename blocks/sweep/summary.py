@@ -6,9 +6,9 @@ worst building is one look away.
 "Worst" follows the score's declared direction (:class:`blocks.core.scores.Score`):
 the lowest runs of a higher-is-better score, the highest of a lower-is-better
 one, and the *bad tail* is the 10th percentile on that side (p10 or p90).
-A run counts for a score when its run.json has the metric, whatever its
-status (a timed-out run's outputs are scored too); runs that did not finish
-are listed apart with their errors.
+A run counts when it ended as its graph meant (``done``, ``stopped``) or ran
+out of time (``timeout``: its outputs are scored as they stood), and has the
+metric; failed, interrupted and unrun runs are listed apart with their errors.
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ from blocks.core.session import FINISHED
 __all__ = ["Stats", "draw_summary", "is_yes_no", "score_stats", "summary_markdown", "write_summary"]
 
 WORST_SHOWN = 3  # worst runs named per score
-NOT_RUN = ("not run", "running")  # statuses of runs with nothing to count yet
+SCORED = FINISHED + ("timeout",)  # statuses of runs whose metrics count
 
 
 @dataclass(frozen=True)
@@ -110,8 +110,9 @@ def summary_markdown(rows: list[dict[str, Any]], scores: list[Score], *,
                      title: str, note: str = "") -> str:
     """``summary.md``: at a glance per kind, each score in full, the runs that did not
     finish, and every metric's distribution."""
-    kinds = _kinds(rows)
-    groups = [("all", rows)] + [(k, [r for r in rows if r.get("kind") == k]) for k in kinds]
+    scored = _scored(rows)
+    groups = [("all", scored)] + [(k, [r for r in scored if r.get("kind") == k])
+                                  for k in _kinds(rows)]
     statuses = _status_counts(rows)
     lines = [f"# {title}", ""]
     lines.append(f"{len(rows)} runs: " + ", ".join(f"{n} {s}" for s, n in statuses.items())
@@ -124,8 +125,12 @@ def summary_markdown(rows: list[dict[str, Any]], scores: list[Score], *,
     else:
         lines += ["The graph declares no `scores:`; every metric is tabulated below.", ""]
     lines += _unfinished(rows)
-    lines += _every_metric(rows)
+    lines += _every_metric(scored)
     return "\n".join(lines).rstrip() + "\n"
+
+
+def _scored(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [r for r in rows if r.get("status") in SCORED]
 
 
 def _status_counts(rows: list[dict[str, Any]]) -> dict[str, int]:
@@ -136,11 +141,11 @@ def _status_counts(rows: list[dict[str, Any]]) -> dict[str, int]:
 
 
 def _glance(groups, scores: list[Score]) -> list[str]:
-    head = "| kind | runs ended | " + " | ".join(f"{s.name} ({s.better})" for s in scores) + " |"
+    head = "| kind | runs | " + " | ".join(f"{s.name} ({s.better})" for s in scores) + " |"
     lines = ["## At a glance", "",
-             "Each cell: median · bad-side 10th percentile · worst run (higher or lower is "
-             "better, as the graph declares); for a yes/no score, the share of runs "
-             "saying yes.", "", head,
+             "Runs that ended or timed out. Each cell: median · bad-side 10th percentile · "
+             "worst run (higher or lower is better, as the graph declares); for a yes/no "
+             "score, the share of runs saying yes.", "", head,
              "|" + " --- |" * (len(scores) + 2)]
     flags = {s.metric for s in scores if is_yes_no(groups[0][1], s.metric)}
     for name, rows in groups:
@@ -153,8 +158,7 @@ def _glance(groups, scores: list[Score]) -> list[str]:
             worst = _fmt(st.worst[0][1]) if st.worst else "–"
             cells.append(f"{_fmt(st.median)} · {_fmt(st.bad_tail)} · {worst}")
         label = f"**{name}**" if name == "all" else name
-        ran = sum(1 for r in rows if r.get("status") not in NOT_RUN)
-        lines.append(f"| {label} | {ran} | " + " | ".join(cells) + " |")
+        lines.append(f"| {label} | {len(rows)} | " + " | ".join(cells) + " |")
     return lines + [""]
 
 
@@ -178,7 +182,9 @@ def _unfinished(rows: list[dict[str, Any]]) -> list[str]:
     bad = [r for r in rows if r.get("status") not in FINISHED]
     if not bad:
         return []
-    lines = ["## Runs that did not finish", "", "| run | status | error |", "| --- | --- | --- |"]
+    lines = ["## Runs that did not finish", "",
+             "Timed-out runs are scored above as their outputs stood; the others are not.", "",
+             "| run | status | error |", "| --- | --- | --- |"]
     for r in bad:
         error = str(r.get("error") or "").replace("|", "\\|")
         lines.append(f"| {r['run']} | {r.get('status')} | {error[:300]} |")
@@ -205,11 +211,13 @@ def _every_metric(rows: list[dict[str, Any]]) -> list[str]:
 def draw_summary(rows: list[dict[str, Any]], scores: list[Score], path: str | Path, *,
                  title: str) -> Path | None:
     """``summary.png``: one panel per score, runs as dots per layout kind over a box from
-    p10 to p90 with the median, the worst run named. None when there is nothing to draw."""
+    p10 to p90 with the median, and the worst run named where it stands out (worse than
+    the bad-side 10th percentile). None when there is nothing to draw."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    rows = _scored(rows)
     drawable = [s for s in scores if score_stats(rows, s, worst=0).runs]
     if not drawable:
         return None
@@ -226,7 +234,8 @@ def draw_summary(rows: list[dict[str, Any]], scores: list[Score], path: str | Pa
                plt.Rectangle((0, 0), 1, 1, fc="lightsteelblue", ec="steelblue",
                              label="p10 to p90"),
                plt.Line2D([], [], color="navy", lw=2, label="median"),
-               plt.Line2D([], [], color="tab:red", marker="x", ls="", label="worst run")]
+               plt.Line2D([], [], color="tab:red", marker="x", ls="",
+                          label="worst run (where it stands out)")]
     fig.legend(handles=handles, loc="lower center", ncol=4, frameon=False)
     fig.suptitle(title)
     fig.tight_layout(rect=(0, 0.06, 1, 0.96))
@@ -251,8 +260,8 @@ def _panel(ax, rows: list[dict[str, Any]], score: Score, groups: list[str], rng)
         ax.scatter(i + rng.uniform(-0.22, 0.22, len(values)), values, s=12, alpha=0.6,
                    color="tab:blue", zorder=2)
         run, value = st.worst[0]
-        if st.min == st.max:
-            continue  # every run alike: no run is the worst
+        if value == st.bad_tail:
+            continue  # tied with a tenth of the runs or more: naming one would mislead
         ax.scatter([i], [value], marker="x", color="tab:red", s=40, zorder=4)
         ax.annotate(run, (i, value), textcoords="offset points", xytext=(4, -10 if
                     score.better == "higher" else 4), fontsize=7, color="tab:red")

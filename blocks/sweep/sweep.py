@@ -19,12 +19,11 @@ from typing import Any, Protocol
 from blocks.core.atomic import ensure_writable_dir
 from blocks.core.errors import SemmapError
 from blocks.core.scores import Score
-from blocks.core.session import FINISHED
 
 from .results import read_rows, write_results
 from .summary import write_summary
 from .tasks import (FAILED, SweepConfig, SweepError, SweepTask, load_manifest, manifest_tasks,
-                    needs_run, plan_tasks, run_dir, run_status, save_manifest)
+                    needs_run, plan_tasks, run_dir, save_manifest)
 from .worker import TaskOutcome
 
 __all__ = ["ENGINES", "Progress", "SweepReport", "report_sweep", "run_sweep"]
@@ -70,8 +69,8 @@ class SweepReport:
 
     @property
     def failed(self) -> list[TaskOutcome]:
-        """This sweep's runs that did not finish (Ctrl-C's excepted)."""
-        return [o for o in self.outcomes if o.status not in FINISHED + ("interrupted",)]
+        """This sweep's runs that failed or timed out."""
+        return [o for o in self.outcomes if o.failed]
 
 
 def run_sweep(graph: str | Path, worlds: list[str] | tuple[str, ...], seeds: str,
@@ -133,7 +132,7 @@ def run_sweep(graph: str | Path, worlds: list[str] | tuple[str, ...], seeds: str
     flat = _check_graph(graph_path, sets, tasks[0].world)
     config = SweepConfig(graph=str(graph_path.resolve()), sets=tuple(sets), steps=steps,
                          records=tuple(records), timeout_s=timeout_s,
-                         retry_failed=retry_failed)
+                         retry_failed=retry_failed, graph_sha256=_digest(graph_path))
     root = ensure_writable_dir(out, what="--out").resolve()
     manifest = save_manifest(root, config, tasks, load_manifest(root),
                              spec={"worlds": list(worlds), "seeds": seeds})
@@ -179,6 +178,7 @@ def report_sweep(root: str | Path) -> SweepReport:
     if manifest is None:
         raise SweepError(f"{root} holds no sweep (no sweep.json)", field="--report",
                          hint="Give the --out folder of a `semmap sweep`.")
+    ensure_writable_dir(root, what="--report")
     tasks = manifest_tasks(manifest)
     scores, name = _recorded_scores(root, manifest, tasks)
     report = SweepReport(root, total=len(tasks))
@@ -204,12 +204,22 @@ def _check_options(engine: str, address: str | None, jobs: int | None,
         require_ray()  # before anything is written
 
 
-def _check_graph(graph: Path, sets, world: str | None):
-    """Load and check the graph as its first run will (one message for any mistake)."""
+def _check_graph(graph: Path, sets, world: str | None, *, build: bool = True):
+    """Load, check and (with ``build``) build the graph as its first run will, so that
+    a mistake in a setting or the first world is one message, not a failure per run."""
     from blocks.core.loader import load_graph
+    from blocks.core.runner import BlockFailure, Runner
     from blocks.core.validate import check_graph
     flat = load_graph(graph, list(sets), roles={"world": world} if world else None)
     check_graph(flat)
+    if build:
+        try:
+            Runner(flat, profile=False)  # builds every block; writes nothing
+        except BlockFailure as exc:
+            raise SweepError(f"the graph cannot be built{f' on {world}' if world else ''}: "
+                             f"{exc}", file=graph,
+                             hint="Check the --set values and the world; `semmap run` with "
+                                  "them shows the whole traceback.") from None
     return flat
 
 
@@ -218,38 +228,39 @@ def _cores() -> int:
         (os.cpu_count() or 1)
 
 
+def _digest(path: Path) -> str:
+    import hashlib
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
 def _recorded_scores(root: Path, manifest: dict[str, Any],
                      tasks: list[SweepTask]) -> tuple[list[Score], str]:
-    """The scores the graph declares now, or, if it no longer loads, as the runs recorded
-    them."""
-    config = manifest.get("config", {})
-    graph = Path(str(config.get("graph", "")))
-    world = tasks[0].world if tasks else None
-    try:
-        flat = _check_graph(graph, config.get("sets", []), world)
-        return flat.scores, flat.name
-    except (SemmapError, OSError):
-        pass
+    """The scores the runs were made with (run.json records the graph), or, before any
+    run wrote one, those the graph file declares."""
     for task in tasks:
         try:
-            doc = json.loads((run_dir(root, task) / "run.json").read_text())
-            recorded = doc["graph"]
+            recorded = json.loads((run_dir(root, task) / "run.json").read_text())["graph"]
             return [Score.from_dict(s) for s in recorded.get("scores", [])], recorded["name"]
-        except (OSError, ValueError, KeyError, TypeError):
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
             continue
-    return [], graph.stem
+    graph = Path(str(manifest.get("config", {}).get("graph", "")))
+    try:
+        flat = _check_graph(graph, manifest["config"].get("sets", []),
+                            tasks[0].world if tasks else None, build=False)
+        return flat.scores, flat.name
+    except (SemmapError, OSError, KeyError):
+        return [], graph.stem
 
 
 def _write_report(root: Path, manifest: dict[str, Any], scores: list[Score],
                   name: str) -> list[Path]:
-    tasks = manifest_tasks(manifest)
-    rows = read_rows(root, tasks)
+    rows = read_rows(root, manifest_tasks(manifest))
     specs = manifest.get("specs", [])
     spec_text = "; ".join((f"{' '.join(s['worlds'])} × " if s["worlds"] else "")
                           + f"seeds {s['seeds']}" for s in specs)
     title = f"Sweep of {name}" + (f": {spec_text}" if spec_text else "")
-    not_run = [t.name for t in tasks if run_status(root, t) is None]
-    failed = sum(1 for t in tasks if run_status(root, t) in FAILED)
+    not_run = [r["run"] for r in rows if r["status"] == "not run"]
+    failed = sum(1 for r in rows if r["status"] in FAILED)
     note = []
     if failed:
         note.append(f"`semmap sweep ... --retry-failed` re-runs the {failed} failed")

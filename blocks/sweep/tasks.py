@@ -78,11 +78,13 @@ class SweepConfig:
     records: tuple[str, ...] = ()
     timeout_s: float | None = None  # per run; None: no limit
     retry_failed: bool = False
+    graph_sha256: str = ""  # of the graph file's bytes
 
     def identity(self) -> dict[str, Any]:
-        """What must match for two sweeps to share a folder."""
-        return {"graph": self.graph, "sets": list(self.sets), "steps": self.steps,
-                "records": list(self.records)}
+        """What must match for two sweeps to share a folder (an edited graph file is
+        another graph; an edited subgraph or block is not seen)."""
+        return {"graph": self.graph, "graph_sha256": self.graph_sha256,
+                "sets": list(self.sets), "steps": self.steps, "records": list(self.records)}
 
 
 def plan_tasks(worlds: list[str] | tuple[str, ...], seeds: str) -> list[SweepTask]:
@@ -165,8 +167,9 @@ def load_manifest(root: str | Path) -> dict[str, Any] | None:
         doc = json.loads(path.read_text())
         if not isinstance(doc, dict) or not isinstance(doc.get("tasks"), list):
             raise ValueError("no task list")
+        manifest_tasks(doc)  # every task readable
         return doc
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, TypeError) as exc:
         raise SweepError(f"cannot read the sweep record: {exc}", file=path,
                          hint="Was it written by `semmap sweep`? Move it away to start over.") \
             from None
@@ -188,10 +191,13 @@ def save_manifest(root: str | Path, config: SweepConfig, tasks: list[SweepTask],
         mine = config.identity()
         changed = [k for k in mine if old.get(k) != mine[k]]
         if changed:
+            shown = [k for k in changed if k != "graph_sha256"]
+            what = ", ".join(shown) if shown else "graph file content (it was edited)"
             raise SweepError(
-                f"{root} holds a sweep with another {', '.join(changed)} "
-                f"({'; '.join(f'{k}: {old.get(k)!r}' for k in changed)})", field="--out",
-                hint="Give a new --out folder, or the same graph and --set values to resume.")
+                f"{root} holds a sweep with another {what}"
+                + (f" ({'; '.join(f'{k}: {old.get(k)!r}' for k in shown)})" if shown else ""),
+                field="--out", hint="Give a new --out folder, or the same graph file, --set, "
+                                    "--steps and --record values to resume it.")
     known = {t["name"]: t for t in (previous or {}).get("tasks", [])}
     known.update({t.name: t.as_dict() for t in tasks})
     specs = list((previous or {}).get("specs", []))
@@ -203,5 +209,11 @@ def save_manifest(root: str | Path, config: SweepConfig, tasks: list[SweepTask],
 
 
 def manifest_tasks(doc: dict[str, Any]) -> list[SweepTask]:
-    """The tasks recorded in a sweep.json document."""
+    """The tasks recorded in a sweep.json document.
+
+    Raises
+    ------
+    TypeError
+        For a task entry that is not a SweepTask's fields.
+    """
     return [SweepTask(**t) for t in doc["tasks"]]

@@ -12,19 +12,18 @@ from __future__ import annotations
 
 import json
 import shutil
-import signal
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from blocks.core.atomic import atomic_write_json
+from blocks.core.atomic import atomic_write_json, atomic_write_text
 from blocks.core.errors import SemmapError
 from blocks.core.loader import load_graph
 from blocks.core.runner import BlockFailure
 from blocks.core.session import run_graph
 
-from .tasks import SweepConfig, SweepTask, run_dir
+from .tasks import FAILED, SweepConfig, SweepTask, run_dir
 
 __all__ = ["TaskOutcome", "init_pool_worker", "record_failure", "run_task", "run_task_in_pool"]
 
@@ -40,6 +39,11 @@ class TaskOutcome:
     error: str | None = None
     task_time_s: float = 0.0
 
+    @property
+    def failed(self) -> bool:
+        """Whether the run ended badly (``failed`` or ``timeout``; not a Ctrl-C)."""
+        return self.status in FAILED
+
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
 
@@ -49,7 +53,8 @@ def _sweep_record(task: SweepTask, config: SweepConfig, **more: Any) -> dict[str
 
 
 def run_task(task: SweepTask, config: SweepConfig, root: str | Path,
-             should_stop: Callable[[], bool] | None = None) -> TaskOutcome:
+             should_stop: Callable[[], bool] | None = None,
+             attempt: str | None = None) -> TaskOutcome:
     """Run one task into ``root/runs/NAME`` (cleared first) and record how it ended.
 
     Parameters
@@ -61,6 +66,9 @@ def run_task(task: SweepTask, config: SweepConfig, root: str | Path,
     should_stop : callable, optional
         Polled every :data:`STOP_CHECK_TICKS` ticks; when it returns True the
         run ends as ``interrupted``, its outputs written.
+    attempt : str, optional
+        A token of this try, written into run.json's ``sweep`` record as soon
+        as the run starts, so an engine can tell when its task began.
 
     Returns
     -------
@@ -85,13 +93,17 @@ def run_task(task: SweepTask, config: SweepConfig, root: str | Path,
             raise KeyboardInterrupt
 
     roles = {"world": task.world} if task.world else None
+    mark = {"attempt": attempt} if attempt else {}
     try:
         flat = load_graph(config.graph, list(config.sets), roles=roles)
         outcome = run_graph(flat, out, seed=task.seed, steps=config.steps,
                             records=config.records, on_tick=watch,
-                            extra={"sweep": _sweep_record(task, config)})
+                            extra={"sweep": _sweep_record(task, config, **mark)})
     except (SemmapError, BlockFailure) as exc:  # nothing ran: the graph or world is bad
         elapsed = time.perf_counter() - start
+        if isinstance(exc, BlockFailure):  # a bug in a block's setup: keep its traceback
+            out.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(out / "error.log", exc.traceback)
         record_failure(root, task, config, "failed", str(exc), elapsed)
         return TaskOutcome(task.name, "failed", str(exc), round(elapsed, 3))
     summary = dict(outcome.summary)
@@ -102,7 +114,7 @@ def run_task(task: SweepTask, config: SweepConfig, root: str | Path,
                  "simulated); its outputs up to then are kept")
         summary["error"] = {"message": error}
     elapsed = time.perf_counter() - start
-    summary["sweep"] = _sweep_record(task, config, task_time_s=round(elapsed, 3))
+    summary["sweep"] = _sweep_record(task, config, **mark, task_time_s=round(elapsed, 3))
     atomic_write_json(out / "run.json", summary)
     return TaskOutcome(task.name, str(summary["status"]), error, round(elapsed, 3))
 
@@ -126,19 +138,21 @@ def record_failure(root: str | Path, task: SweepTask, config: SweepConfig, statu
 
 
 # ---- in a local pool's worker process -------------------------------------------------------
-# The pool's initializer hands each worker process the sweep's stop flag; the
+# The pool's initializer hands each worker process the sweep's stop flag (pebble
+# starts workers with Ctrl-C ignored: the parent raises the flag instead); the
 # process runs one task at a time, so one flag per process is all the state there is.
 _STOP_FLAG: Any = None
 
 
 def init_pool_worker(stop_flag: Any) -> None:
-    """Start a pool worker: Ctrl-C is the parent's to handle (it raises ``stop_flag``)."""
+    """Start a pool worker with the sweep's stop flag (a ``multiprocessing.Event``)."""
     global _STOP_FLAG
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _STOP_FLAG = stop_flag
 
 
 def run_task_in_pool(task: SweepTask, config: SweepConfig, root: str) -> TaskOutcome:
-    """:func:`run_task` stopped by the pool's stop flag."""
+    """:func:`run_task` stopped by the pool's stop flag; not begun once it is raised."""
     flag = _STOP_FLAG
+    if flag is not None and flag.is_set():
+        return TaskOutcome(task.name, "interrupted", "the sweep stopped before it began")
     return run_task(task, config, root, should_stop=flag.is_set if flag is not None else None)

@@ -149,7 +149,14 @@ def expand_worlds(spec: str) -> list[WorldRef]:
             refs.append(WorldRef(name=f"{k}-{seed}", kind=k, spec=f"{GEN_PREFIX}{k}:{seed}",
                                  seed=seed))
         return refs
+    if not spec:
+        raise WorldSpecError("an empty world spec", field="world",
+                             hint="Name a library world (office), a world file or "
+                                  "gen:KIND:SEEDS.")
     path = Path(spec)
+    if path.is_dir():
+        raise WorldSpecError(f"world {spec!r} is a folder, not a world file", field="world",
+                             hint="Give the world's YAML file.")
     if path.suffix in (".yaml", ".yml") or path.exists():
         return [WorldRef(name=path.stem, kind="file", spec=str(path))]
     from . import world_path
