@@ -218,7 +218,7 @@ def test_a_sweep_on_two_workers_runs_every_pair_as_an_ordinary_run(tiny, tmp_pat
     # a second sweep into the folder runs nothing and changes no run
     before = {p: p.stat().st_mtime_ns for p in out.glob("runs/*/run.json")}
     again = sweep(tiny, "--worlds", "gen:any:0-2", "--seeds", "0-1", "--out", out, "-j", "2")
-    assert again.returncode == 0 and "0 run now, 6 finished earlier" in again.stderr
+    assert again.returncode == 0 and "0 run now, 6 ended earlier," in again.stderr
     assert {p: p.stat().st_mtime_ns for p in out.glob("runs/*/run.json")} == before
     # --report rebuilds the summary from the runs alone
     (out / "summary.md").unlink()
@@ -240,8 +240,9 @@ def test_a_failing_run_is_recorded_and_the_others_finish(tiny, tmp_path, cache):
     assert "broken-s0: failed" in proc.stderr
     assert "| broken-s0 | failed |" in (out / "summary.md").read_text()
     # a later sweep leaves the failure alone unless asked to retry it
-    assert "0 run now" in sweep(tiny, "--worlds", "corridor", "--worlds", broken, "--worlds",
-                                "gen:any:1", "--out", out).stderr
+    assert "0 run now, 3 ended earlier (1 of them failed" in sweep(
+        tiny, "--worlds", "corridor", "--worlds", broken, "--worlds", "gen:any:1",
+        "--out", out).stderr
     retried = sweep(tiny, "--worlds", "corridor", "--worlds", broken, "--worlds", "gen:any:1",
                     "--out", out, "--retry-failed")
     assert "1 run now" in retried.stderr
@@ -288,7 +289,7 @@ def test_a_sweep_killed_midway_resumes_without_rerunning_finished_runs(tiny, tmp
     assert 1 <= len(finished) < 6
     resumed = sweep(tiny, "--worlds", "gen:any:0-5", "--steps", "12000", "--out", out, "-j", "2")
     assert resumed.returncode == 0, resumed.stderr
-    assert f"{6 - len(finished)} run now, {len(finished)} finished earlier" in resumed.stderr
+    assert f"{6 - len(finished)} run now, {len(finished)} ended earlier," in resumed.stderr
     for name, mtime in finished.items():
         assert (out / "runs" / name / "run.json").stat().st_mtime_ns == mtime
     assert {r["status"] for r in rows(out).values()} == {"done"}

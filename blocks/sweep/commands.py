@@ -30,7 +30,7 @@ class _BarProgress:
     def start(self, total: int, skipped: int) -> None:
         from tqdm import tqdm
         if skipped:
-            click.echo(f"{skipped} runs finished earlier: skipped", err=True)
+            click.echo(f"{skipped} runs ended earlier: skipped", err=True)
         self.bar = tqdm(total=total, unit="run", desc="sweep", dynamic_ncols=True)
 
     def done(self, task: SweepTask, outcome: TaskOutcome) -> None:
@@ -58,7 +58,7 @@ class _LineProgress:
 
     def start(self, total: int, skipped: int) -> None:
         self.total = total
-        click.echo(f"sweep: {total} runs to run" + (f", {skipped} finished earlier" if skipped
+        click.echo(f"sweep: {total} runs to run" + (f", {skipped} ended earlier" if skipped
                                                      else ""), err=True)
 
     def done(self, task: SweepTask, outcome: TaskOutcome) -> None:
@@ -145,8 +145,10 @@ def sweep(graph: str | None, worlds: tuple[str, ...], seeds: str, sets: tuple[st
                            steps=steps, records=records, progress=_progress(quiet))
     if not quiet:
         ran = len(result.outcomes)
+        earlier = (f" ({result.skipped_failed} of them failed: --retry-failed re-runs them)"
+                   if result.skipped_failed else "")
         click.echo(f"{result.total} runs in {result.root}: {ran} run now, {result.skipped} "
-                   f"finished earlier, {len(result.failed)} failed now", err=True)
+                   f"ended earlier{earlier}, {len(result.failed)} failed now", err=True)
         for outcome in result.failed:
             click.echo(f"  {outcome.name}: {outcome.status}: {outcome.error}", err=True)
     for path in result.files:

@@ -23,7 +23,7 @@ from blocks.core.scores import Score
 from .results import read_rows, write_results
 from .summary import write_summary
 from .tasks import (FAILED, SweepConfig, SweepError, SweepTask, load_manifest, manifest_tasks,
-                    needs_run, plan_tasks, run_dir, save_manifest)
+                    needs_run, plan_tasks, run_dir, run_status, save_manifest)
 from .worker import TaskOutcome
 
 __all__ = ["ENGINES", "Progress", "SweepReport", "report_sweep", "run_sweep"]
@@ -52,6 +52,8 @@ class SweepReport:
         Tasks recorded in the folder (this sweep's and earlier ones').
     skipped : int
         This sweep's tasks left out because an earlier sweep ended them.
+    skipped_failed : int
+        How many of those had failed or timed out (``--retry-failed`` re-runs them).
     outcomes : list of TaskOutcome
         The runs this sweep ran, in the order they ended.
     interrupted : bool
@@ -63,6 +65,7 @@ class SweepReport:
     root: Path
     total: int = 0
     skipped: int = 0
+    skipped_failed: int = 0
     outcomes: list[TaskOutcome] = field(default_factory=list)
     interrupted: bool = False
     files: list[Path] = field(default_factory=list)
@@ -137,7 +140,9 @@ def run_sweep(graph: str | Path, worlds: list[str] | tuple[str, ...], seeds: str
     manifest = save_manifest(root, config, tasks, load_manifest(root),
                              spec={"worlds": list(worlds), "seeds": seeds})
     todo = [t for t in tasks if needs_run(root, t, retry_failed=retry_failed)]
-    report = SweepReport(root, total=len(manifest["tasks"]), skipped=len(tasks) - len(todo))
+    report = SweepReport(root, total=len(manifest["tasks"]), skipped=len(tasks) - len(todo),
+                         skipped_failed=sum(run_status(root, t) in FAILED for t in tasks
+                                            if t not in todo))
     if progress is not None:
         progress.start(len(todo), report.skipped)
 
@@ -148,13 +153,11 @@ def run_sweep(graph: str | Path, worlds: list[str] | tuple[str, ...], seeds: str
 
     stopping = progress.stopping if progress is not None else None
     try:
-        if not todo:
-            pass
-        elif engine == "ray":
+        if todo and engine == "ray":
             from .ray_engine import run_ray
             report.interrupted = run_ray(todo, config, root, jobs=jobs, address=address,
                                          on_done=on_done, on_stopping=stopping)
-        else:
+        elif todo:
             from .local import run_local
             report.interrupted = run_local(todo, config, root, jobs=jobs or _cores(),
                                            on_done=on_done, on_stopping=stopping)
