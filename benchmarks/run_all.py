@@ -18,6 +18,7 @@ import object_recogniser  # noqa: E402
 import sign_detector  # noqa: E402
 import sign_reader  # noqa: E402
 import bench_sweep  # noqa: E402
+import bench_pipeline  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,7 +33,8 @@ def main(argv: list[str] | None = None) -> int:
                          ("maps", bench_maps), ("sign_detector", sign_detector),
                          ("sign_reader", sign_reader), ("object_recogniser", object_recogniser),
                          ("reasoner", bench_reasoner), ("planner", bench_planner),
-                         ("query", bench_query), ("sweep", bench_sweep)):
+                         ("query", bench_query), ("sweep", bench_sweep),
+                         ("pipeline", bench_pipeline)):
         extra = ["--json", str(args.results / f"{name}.json")] if args.results else []
         if name == "engine" and args.quick:
             extra += ["--seconds", "0.01", "--repeats", "1"]

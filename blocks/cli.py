@@ -270,6 +270,23 @@ def debug(graph: str, overrides: tuple[str, ...], seed: int) -> None:
     Debugger(Runner(_load(graph, overrides), seed=seed)).loop()
 
 
+@cli.command()
+@click.argument("run_dir", type=click.Path(file_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False),
+              help="Picture to write (default: RUN_DIR/profile.png).")
+@click.option("--top", type=click.IntRange(min=1), help="Show only the N slowest blocks.")
+def profile(run_dir: str, output: str | None, top: int | None) -> None:
+    """Print where RUN_DIR's time went, slowest block first, and draw it to a PNG."""
+    from .core.atomic import ensure_writable_dir
+    from .core.profile_report import draw_profile, load_profile, profile_text
+
+    summary = load_profile(run_dir)
+    click.echo(profile_text(summary, top), nl=False)
+    target = Path(output) if output else Path(run_dir) / "profile.png"
+    ensure_writable_dir(target.parent, what="-o")
+    click.echo(str(draw_profile(summary, target)))
+
+
 def _emit(text: str, output: str | None) -> None:
     if output:
         atomic_write_text(output, text)

@@ -24,6 +24,8 @@ def test_benchmarks_quick_run(tmp_path):
     detector = json.loads((tmp_path / "sign_detector.json").read_text())
     reader = json.loads((tmp_path / "sign_reader.json").read_text())
     assert detector and reader
+    pipeline = json.loads((tmp_path / "pipeline.json").read_text())
+    assert pipeline["x_real_time"] > 0 and pipeline["peak_rss_mb"] > 0
     sweep = json.loads((tmp_path / "sweep.json").read_text())
     assert sweep["sweep_over_plain_loop"] > 0 and sweep["speedup_two_workers"] > 0
     for name in ("object_recogniser", "reasoner", "planner", "query"):

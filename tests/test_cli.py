@@ -197,3 +197,21 @@ def test_non_numeric_probe_goes_to_jsonl(write, cli, tmp_path):
     ticks, values = probes["msg.value"]
     assert ticks.tolist() == [0, 1, 2] and values[0] == {"text": "MAIL ROOM", "score": 0.9}
     assert probes["c.count"][1].tolist() == [0, 1, 2]
+
+
+def test_profile_prints_the_slowest_block_first_and_draws_it(cli, tmp_path):
+    out = tmp_path / "run"
+    assert cli("run", EXAMPLES / "counter.yaml", "--out", out, "-q").code == 0
+    result = cli("profile", out, "--top", "2")
+    assert result.code == 0, result.err
+    lines = result.out.splitlines()
+    assert "sorted by total time" in lines[0] and lines[2].split()[:2] == ["node", "type"]
+    totals = [float(line.split()[3]) for line in lines[3:5]]
+    assert totals == sorted(totals, reverse=True)
+    assert lines[5].startswith("(the other ") and lines[-1] == str(out / "profile.png")
+    assert (out / "profile.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_profile_of_a_folder_without_a_run_is_one_paragraph(cli, tmp_path):
+    result = cli("profile", tmp_path)
+    assert result.code == 2 and "no run.json" in result.err and "Traceback" not in result.err
