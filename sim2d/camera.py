@@ -331,39 +331,41 @@ class Walls:
 
     def __init__(self, segments: np.ndarray, index: bool = True) -> None:
         self.segments = np.ascontiguousarray(segments, dtype=np.float64).reshape(-1, 5)
-        self._end_ids = None  # (2S,) int: the same id for coinciding ends, a's then b's
+        self._end_ids = None  # (2, S) int: the same id for coinciding ends (a's, b's)
         n_ends = 2 * len(self.segments)
         if index and n_ends:
             keys = _end_keys(self.segments)
             # _shared_ends gives ends without a face the stand-in keys -1 .. -n_ends;
             # a real key among them would meet one there, so such walls are not indexed
             if not np.any((keys >= -n_ends) & (keys < 0)):
-                self._end_ids = np.unique(keys, return_inverse=True)[1].reshape(-1)
+                self._end_ids = np.unique(keys, return_inverse=True)[1].reshape(2, -1)
 
     def cast(self, origin, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nearest wall hit along each ray: ``distance`` and ``incidence`` as :func:`cast_rays`."""
         angles = np.asarray(angles, dtype=np.float64).reshape(-1)
         n_rays = angles.shape[0]
         seg, end_ids = self.segments, self._end_ids
-        ox, oy = float(origin[0]), float(origin[1])
-        if len(seg) and n_rays:
-            keep = _cull(seg, ox, oy, angles)
-            if keep is not None:
-                seg = seg[keep]
-                if end_ids is not None:
-                    end_ids = end_ids[np.concatenate([keep, keep])]
         if len(seg) == 0 or n_rays == 0:
             return np.full(n_rays, np.inf), np.zeros(n_rays)
-        return _cast(ox, oy, angles, seg, end_ids)
+        ox, oy = float(origin[0]), float(origin[1])
+        rel = seg[:, :4] - (ox, oy, ox, oy)  # the ends relative to the origin
+        keep = _cull(rel, seg[:, 4], angles)
+        if keep is not None:
+            seg, rel = seg[keep], rel[keep]
+            if end_ids is not None:
+                end_ids = end_ids[:, keep]
+            if len(seg) == 0:
+                return np.full(n_rays, np.inf), np.zeros(n_rays)
+        return _cast(seg, rel, angles, end_ids)
 
 
-def _cast(ox: float, oy: float, angles: np.ndarray, seg: np.ndarray,
+def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
           end_ids: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """The ray-capsule kernel of :func:`cast_rays` on the segments it keeps (``end_ids``:
-    their ends' ids from :class:`Walls`, or None to find the shared ends here)."""
+    """The ray-capsule kernel of :func:`cast_rays` on the segments it keeps: ``rel`` are
+    their ends relative to the origin, ``end_ids`` their ids from :class:`Walls` (or None
+    to find the shared ends here)."""
     n_rays = angles.shape[0]
-    ax, ay = seg[:, 0] - ox, seg[:, 1] - oy  # relative to the origin
-    bx, by = seg[:, 2] - ox, seg[:, 3] - oy
+    ax, ay, bx, by = rel.T
     r = seg[:, 4]
     ex, ey = bx - ax, by - ay
     length = np.hypot(ex, ey)
@@ -372,10 +374,10 @@ def _cast(ox: float, oy: float, angles: np.ndarray, seg: np.ndarray,
     nx, ny = -ey * inv_len, ex * inv_len  # unit normal (left of a -> b)
     side = np.where(-(ax * nx + ay * ny) >= 0, 1.0, -1.0)  # the face towards the origin
     qx, qy = ax + side * r * nx, ay + side * r * ny
-    shared_a, shared_b, caps = _shared_ends(seg, has_length, end_ids)
+    shared, caps = _shared_ends(seg, rel, has_length, end_ids)
     # (and 10 um more everywhere, so float32 rounding opens no pinholes at joints)
-    s_lo = np.where(shared_a, -r * inv_len, 0.0) - 1e-5 * inv_len
-    s_hi = np.where(shared_b, 1.0 + r * inv_len, 1.0) + 1e-5 * inv_len
+    s_lo = np.where(shared[0], -r * inv_len, 0.0) - 1e-5 * inv_len
+    s_hi = np.where(shared[1], 1.0 + r * inv_len, 1.0) + 1e-5 * inv_len
     s_lo[~has_length], s_hi[~has_length] = 2.0, -1.0  # no face for posts
     f32 = np.float32
     dx, dy = np.cos(angles).astype(f32)[:, None], np.sin(angles).astype(f32)[:, None]
@@ -399,8 +401,8 @@ def _cast(ox: float, oy: float, angles: np.ndarray, seg: np.ndarray,
         # |cos| only where it is needed, as it would be everywhere
         cos_best = np.abs(denom[rows, best]) * inv_len.astype(f32)[best]
         if len(caps):
-            cx_, cy_, cr = (caps[:, i] - o for i, o in ((0, ox), (1, oy), (2, 0.0)))
-            cx32, cy32 = cx_.astype(f32), cy_.astype(f32)
+            cx32, cy32 = caps[:, 0].astype(f32), caps[:, 1].astype(f32)
+            cr = caps[:, 2]
             proj = dx * cx32 + dy * cy32  # (R, K): along the ray
             perp = dx * cy32
             perp -= dy * cx32  # across it (no cancellation, unlike |c|^2 - proj^2)
@@ -421,25 +423,23 @@ def _cast(ox: float, oy: float, angles: np.ndarray, seg: np.ndarray,
     return distance, np.clip(incidence, 0.0, 1.0)
 
 
-def _cull(seg: np.ndarray, ox: float, oy: float, angles: np.ndarray) -> np.ndarray | None:
-    """Which capsules are not wholly outside the wedge the rays span (S,) bool; None
-    (keep all) when the wedge is a half turn or more."""
-    rel = np.angle(np.exp(1j * (angles - angles[0])))
-    lo, hi = float(rel.min()), float(rel.max())
+def _cull(rel: np.ndarray, radius: np.ndarray, angles: np.ndarray) -> np.ndarray | None:
+    """Which capsules (ends ``rel`` relative to the rays' origin, (S, 4)) are not wholly
+    outside the wedge the rays span (S,) bool; None (keep all) when the wedge is a half
+    turn or more."""
+    rel_angles = np.angle(np.exp(1j * (angles - angles[0])))
+    lo, hi = float(rel_angles.min()), float(rel_angles.max())
     half = (hi - lo) / 2
     if half >= math.pi / 2 - 1e-3:
         return None
     mid = angles[0] + lo + half
     c, s = math.cos(mid), math.sin(mid)
     sh, ch = math.sin(half), math.cos(half)
-    margin = seg[:, 4] + 1e-4
-    out_left = np.ones(len(seg), dtype=bool)
-    out_right = np.ones(len(seg), dtype=bool)
-    for i in (0, 2):
-        px, py = seg[:, i] - ox, seg[:, i + 1] - oy
-        x, y = c * px + s * py, -s * px + c * py  # in the wedge's frame
-        out_left &= x * sh - y * ch < -margin
-        out_right &= x * sh + y * ch < -margin
+    px, py = rel[:, 0::2], rel[:, 1::2]  # (S, 2): both ends
+    x, y = c * px + s * py, -s * px + c * py  # in the wedge's frame
+    limit = -(radius + 1e-4)[:, None]
+    out_left = (x * sh - y * ch < limit).all(axis=1)
+    out_right = (x * sh + y * ch < limit).all(axis=1)
     return ~(out_left | out_right)
 
 
@@ -450,35 +450,36 @@ def _end_keys(seg: np.ndarray) -> np.ndarray:
     return keys[:, 0] * 1_000_003 + keys[:, 1]
 
 
-def _shared_ends(seg: np.ndarray, has_length: np.ndarray, end_ids: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _shared_ends(seg: np.ndarray, rel: np.ndarray, has_length: np.ndarray,
+                 end_ids: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Which segment ends touch another segment's end, and the round caps still needed.
 
-    ``end_ids`` (2S,), if given, are the ends' ids from :class:`Walls`
-    (equal for coinciding ends); without them the ends are keyed here.
+    ``rel`` (S, 4) are the ends relative to the rays' origin; ``end_ids``
+    (2, S), if given, their ids from :class:`Walls` (equal for coinciding
+    ends); without them the ends are keyed here.
 
-    Returns ``shared_a``, ``shared_b`` (S,) bool and ``caps`` (K, 3): x, y,
-    radius of the free ends and of the zero-length segments.
+    Returns ``shared`` (2, S) bool (a ends, b ends) and ``caps`` (K, 3): x, y
+    (relative to the origin) and radius of the free ends, then of the
+    zero-length segments (posts).
     """
     n = len(seg)
-    ends = np.concatenate([seg[:, 0:2], seg[:, 2:4]])  # a's then b's
-    valid = np.concatenate([has_length, has_length])
+    valid = np.broadcast_to(has_length, (2, n))
     if end_ids is None:
         keys = _end_keys(seg)
-        _, inverse, counts = np.unique(np.where(valid, keys, -1 - np.arange(2 * n)),
+        _, inverse, counts = np.unique(np.where(valid.ravel(), keys, -1 - np.arange(2 * n)),
                                        return_inverse=True, return_counts=True)
-        shared = (counts[inverse] > 1) & valid
+        shared = (counts[inverse] > 1).reshape(2, n) & valid
     else:  # how many ends with a face share each id
-        shared = (np.bincount(end_ids, weights=valid)[end_ids] > 1) & valid
-    shared_a, shared_b = shared[:n], shared[n:]
-    radius = np.concatenate([seg[:, 4], seg[:, 4]])
+        shared = (np.bincount(end_ids.ravel(), weights=valid.ravel())[end_ids] > 1) & valid
+    radius = seg[:, 4]
     free = valid & ~shared & (radius > 0)
-    posts = ~has_length & (seg[:, 4] > 0)
-    caps = np.concatenate([
-        np.column_stack([ends[free], radius[free]]),
-        np.column_stack([seg[posts, 0:2], seg[posts, 4]]),
-    ])
-    return shared_a, shared_b, caps
+    posts = ~has_length & (radius > 0)
+    ends = rel.reshape(n, 2, 2).transpose(1, 0, 2)  # (2, S, 2): a's, b's
+    caps = np.empty((int(free.sum()) + int(posts.sum()), 3))
+    k = len(caps) - int(posts.sum())
+    caps[:k, :2], caps[:k, 2] = ends[free], np.broadcast_to(radius, (2, n))[free]
+    caps[k:, :2], caps[k:, 2] = rel[posts, :2], radius[posts]
+    return shared, caps
 
 
 # ---- sign plates ---------------------------------------------------------------------------
@@ -1254,7 +1255,7 @@ class CameraRenderer:
         self._walls = Walls(world.segments)
         self._plates = _Plates.of(world)
         self._objects: _Objects | None = None  # at the first look (it may load the catalogue)
-        self._palette = _palette_lut(getattr(world, "colours", None))
+        self._palette = _palette(getattr(world, "colours", None))
         self._lens: _Lens | None = None  # of the last tilt and zoom
         self._canvas = _Canvas(spec.height, spec.width)
 
@@ -1388,8 +1389,7 @@ class _Canvas:
 
     def __init__(self, height: int, width: int) -> None:
         f32, size = np.float32, (height, width)
-        self.shade, self.depth = np.empty(size, f32), np.empty(size, f32)
-        self.cls = np.empty(size, np.uint8)
+        self.depth = np.empty(size, f32)
         self.channels = tuple(np.empty(size, f32) for _ in range(3))  # B, G, R, lit
         # once merged into img, the channels hold the blur's sigma and weights
         self.sigma, self.frac, self.keep = self.channels
@@ -1400,18 +1400,20 @@ class _Canvas:
         self.small = np.empty((height // 2, width // 2, 3), f32)
 
 
-def _scene(shot: _Shot, spec: CameraSpec, palette_lut: np.ndarray, canvas: _Canvas
+def _scene(shot: _Shot, spec: CameraSpec, palette: np.ndarray, canvas: _Canvas
            ) -> tuple[np.ndarray, np.ndarray]:
     """The lit walls, floor and ceiling (float32 BGR) and their forward depth (m) per pixel,
     drawn into ``canvas``.
 
     Walls take a depth per column, shaded by their angle to the ray and by
     distance, with a dark skirting board; the floor a depth per row and a
-    faint checker in world coordinates; the ceiling a depth per row.
+    faint checker in world coordinates; the ceiling a depth per row. A
+    pixel is its class's colour in ``palette`` (floor, ceiling, wall,
+    skirting) times its shade.
     """
     lens = shot.lens
-    W, H = spec.width, spec.height
-    f, cx, cy = lens.f, lens.cx, lens.cy
+    H = spec.height
+    f, cy = lens.f, lens.cy
     px, py, yaw = shot.pose
     cam_z = spec.mount_z
     wall_d = shot.wall_t * lens.cos_a  # forward depth per column
@@ -1420,22 +1422,24 @@ def _scene(shot: _Shot, spec: CameraSpec, palette_lut: np.ndarray, canvas: _Canv
     v_top = np.where(hit, cy - f * (spec.wall_height - cam_z) / safe_d, cy)  # (W,)
     v_bot = np.where(hit, cy + f * cam_z / safe_d, cy)
 
+    # the floor lies under the horizon (rows from r0), the ceiling over it (rows to r1),
+    # and so does the skirting board unless the camera is lower than its top
     f32 = np.float32
-    rows = lens.rows  # (H, 1)
-    is_floor = rows > v_bot.astype(f32)[None, :]  # (H, W)
-    is_ceiling = rows < v_top.astype(f32)[None, :]
+    rows, r0, r1 = lens.rows, lens.r0, lens.r1
+    low = r0 if cam_z >= SKIRTING_HEIGHT else 0
+    is_floor = rows[low:] > v_bot.astype(f32)[None, :]  # (H - low, W)
+    is_ceiling = rows[:r1] < v_top.astype(f32)[None, :]  # (r1, W)
     v_skirt = np.where(hit, cy + f * (cam_z - SKIRTING_HEIGHT) / safe_d, np.inf).astype(f32)
-    is_skirting = (rows > v_skirt[None, :]) & ~is_floor
+    is_skirting = (rows[low:] > v_skirt[None, :]) & ~is_floor
+    on_floor = is_floor[r0 - low:]  # (H - r0, W)
 
+    # walls: depth per column, shaded by their angle to the ray and by distance
     far = np.where(hit, wall_d, 1e3)
-    shade, depth, cls = canvas.shade, canvas.depth, canvas.cls
-    shade[:] = ((0.4 + 0.6 * shot.incidence) * _light(far)).astype(f32)[None, :]
+    wall_shade = ((0.4 + 0.6 * shot.incidence) * _light(far)).astype(f32)
+    depth = canvas.depth
     depth[:] = far.astype(f32)[None, :]
-    cls.fill(2)  # 0 floor, 1 ceiling, 2 wall, 3 skirting
-    cls[is_skirting] = 3
-
-    r0 = lens.r0
-    if r0 < H:
+    floor_shade = None
+    if r0 < H:  # depth per row, faint checker in world coordinates
         floor_d, lateral = lens.floor_d, lens.lateral
         c, s = math.cos(yaw), math.sin(yaw)
         fx = (f32(px / FLOOR_TILE) + floor_d * f32(c / FLOOR_TILE) - lateral * f32(s / FLOOR_TILE))
@@ -1443,18 +1447,19 @@ def _scene(shot: _Shot, spec: CameraSpec, palette_lut: np.ndarray, canvas: _Canv
         # whole tiles (exact in float32 here), odd sums on the bright tiles
         odd = (np.floor(fx).astype(np.int32) + np.floor(fy).astype(np.int32)) & 1
         floor_shade = np.where(odd.astype(bool), lens.floor_light[:, 1:], lens.floor_light[:, :1])
-        mask = is_floor[r0:]
-        np.copyto(shade[r0:], floor_shade, where=mask)
-        np.copyto(depth[r0:], np.broadcast_to(floor_d, mask.shape), where=mask)
-        cls[r0:][mask] = 0
-    r1 = lens.r1
+        np.copyto(depth[r0:], np.broadcast_to(floor_d, on_floor.shape), where=on_floor)
     if r1 > 0:
-        mask = is_ceiling[:r1]
-        np.copyto(shade[:r1], np.broadcast_to(lens.ceil_shade, mask.shape), where=mask)
-        np.copyto(depth[:r1], np.broadcast_to(lens.ceil_d, mask.shape), where=mask)
-        cls[:r1][mask] = 1
-    for lut, lit in zip(palette_lut, canvas.channels):  # colour by class, times the shade
-        cv2.multiply(cv2.LUT(cls, lut, dst=lit), shade, dst=lit)
+        np.copyto(depth[:r1], np.broadcast_to(lens.ceil_d, is_ceiling.shape), where=is_ceiling)
+
+    # each channel: colour times shade, class by class (later ones win)
+    floor_bgr, ceiling_bgr, wall_bgr, skirting_bgr = palette
+    for k, lit in enumerate(canvas.channels):
+        np.multiply(wall_shade[None, :], wall_bgr[k], out=lit)
+        np.multiply(wall_shade[None, :], skirting_bgr[k], out=lit[low:], where=is_skirting)
+        if floor_shade is not None:
+            np.multiply(floor_shade, floor_bgr[k], out=lit[r0:], where=on_floor)
+        if r1 > 0:
+            np.multiply(lens.ceil_shade, ceiling_bgr[k], out=lit[:r1], where=is_ceiling)
     return cv2.merge(canvas.channels, dst=canvas.img), depth
 
 
@@ -1472,14 +1477,6 @@ def _palette(colours: Mapping[str, Any] | None) -> np.ndarray:
         if key in colours:
             palette[row] = _bgr(colours[key])
     return palette
-
-
-def _palette_lut(colours: Mapping[str, Any] | None) -> np.ndarray:
-    """:func:`_palette` as ``cv2.LUT`` tables (3, 1, 256) float32: per channel (B, G, R),
-    by pixel class."""
-    lut = np.zeros((3, 1, 256), dtype=np.float32)
-    lut[:, 0, :len(_PALETTE)] = _palette(colours).T
-    return lut
 
 
 def _gaussian_noise(shape: tuple[int, ...], std: float, rng: np.random.Generator,
