@@ -1257,6 +1257,7 @@ class CameraRenderer:
         self._objects: _Objects | None = None  # at the first look (it may load the catalogue)
         self._palette = _palette(getattr(world, "colours", None))
         self._lens: _Lens | None = None  # of the last tilt and zoom
+        self._backdrop: _Backdrop | None = None  # of that lens
         self._canvas = _Canvas(spec.height, spec.width)
 
     def frame(self, cam_pose, tilt: float, zoom: float, rng: np.random.Generator) -> CameraFrame:
@@ -1286,6 +1287,7 @@ class CameraRenderer:
         lens = self._lens
         if lens is None or lens.tilt != tilt or lens.zoom != zoom:
             lens = self._lens = _Lens.of(self.spec, tilt, zoom)
+            self._backdrop = _Backdrop.of(lens, self._palette, self.spec.width)
         wall_t, incidence = self._walls.cast((px, py), yaw + lens.angles)
         return _Shot((px, py, yaw), tilt, zoom, lens, wall_t, incidence)
 
@@ -1302,7 +1304,7 @@ class CameraRenderer:
     def _image(self, shot: _Shot, plates: list[_PlateView], objects: list[_ObjectView],
                rng: np.random.Generator) -> np.ndarray:
         spec, canvas, f32 = self.spec, self._canvas, np.float32
-        img, depth = _scene(shot, spec, self._palette, canvas)
+        img, depth = _scene(shot, spec, self._palette, self._backdrop, canvas)
         # sign plates and objects, far to near
         views: list = [*plates, *objects]
         for view in sorted(views, key=lambda vw: -vw.depth):
@@ -1389,10 +1391,7 @@ class _Canvas:
 
     def __init__(self, height: int, width: int) -> None:
         f32, size = np.float32, (height, width)
-        self.depth = np.empty(size, f32)
-        self.channels = tuple(np.empty(size, f32) for _ in range(3))  # B, G, R, lit
-        # once merged into img, the channels hold the blur's sigma and weights
-        self.sigma, self.frac, self.keep = self.channels
+        self.depth, self.sigma, self.frac, self.keep = (np.empty(size, f32) for _ in range(4))
         self.img = np.empty((*size, 3), f32)
         # the blurs (each blended in place with the last) and then the noise take turns
         self.spare = (np.empty((*size, 3), f32), np.empty((*size, 3), f32))
@@ -1400,8 +1399,32 @@ class _Canvas:
         self.small = np.empty((height // 2, width // 2, 3), f32)
 
 
-def _scene(shot: _Shot, spec: CameraSpec, palette: np.ndarray, canvas: _Canvas
-           ) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class _Backdrop:
+    """The floor's and ceiling's colours and depths for one lens and palette, as whole
+    images of the rows they can reach (the floor's on dark and on bright tiles)."""
+
+    floor_dark: np.ndarray  # (H - r0, W, 3) float32 BGR
+    floor_bright: np.ndarray  # (H - r0, W, 3)
+    floor_depth: np.ndarray  # (H - r0, W) float32 m
+    ceiling: np.ndarray  # (r1, W, 3)
+    ceiling_depth: np.ndarray  # (r1, W)
+
+    @classmethod
+    def of(cls, lens: _Lens, palette: np.ndarray, width: int) -> _Backdrop:
+        floor_bgr, ceiling_bgr = palette[0], palette[1]
+
+        def spread(column: np.ndarray) -> np.ndarray:  # (n, ...) -> (n, W, ...), row by row
+            return np.ascontiguousarray(np.repeat(column[:, None], width, axis=1))
+
+        return cls(spread(lens.floor_light[:, 0:1] * floor_bgr),
+                   spread(lens.floor_light[:, 1:2] * floor_bgr),
+                   spread(lens.floor_d[:, 0]), spread(lens.ceil_shade * ceiling_bgr),
+                   spread(lens.ceil_d[:, 0]))
+
+
+def _scene(shot: _Shot, spec: CameraSpec, palette: np.ndarray, backdrop: _Backdrop,
+           canvas: _Canvas) -> tuple[np.ndarray, np.ndarray]:
     """The lit walls, floor and ceiling (float32 BGR) and their forward depth (m) per pixel,
     drawn into ``canvas``.
 
@@ -1409,7 +1432,7 @@ def _scene(shot: _Shot, spec: CameraSpec, palette: np.ndarray, canvas: _Canvas
     distance, with a dark skirting board; the floor a depth per row and a
     faint checker in world coordinates; the ceiling a depth per row. A
     pixel is its class's colour in ``palette`` (floor, ceiling, wall,
-    skirting) times its shade.
+    skirting) times its shade; ``backdrop`` has the floor's and ceiling's.
     """
     lens = shot.lens
     H = spec.height
@@ -1433,34 +1456,33 @@ def _scene(shot: _Shot, spec: CameraSpec, palette: np.ndarray, canvas: _Canvas
     is_skirting = (rows[low:] > v_skirt[None, :]) & ~is_floor
     on_floor = is_floor[r0 - low:]  # (H - r0, W)
 
-    # walls: depth per column, shaded by their angle to the ray and by distance
+    # walls: depth per column, shaded by their angle to the ray and by distance;
+    # then (later ones win) the skirting board, the floor and the ceiling
     far = np.where(hit, wall_d, 1e3)
-    wall_shade = ((0.4 + 0.6 * shot.incidence) * _light(far)).astype(f32)
-    depth = canvas.depth
+    wall_shade = ((0.4 + 0.6 * shot.incidence) * _light(far)).astype(f32)[:, None]  # (W, 1)
+    img, depth = canvas.img, canvas.depth
+    np.copyto(img, (wall_shade * palette[2])[None])
     depth[:] = far.astype(f32)[None, :]
-    floor_shade = None
-    if r0 < H:  # depth per row, faint checker in world coordinates
+    if low < H:
+        skirting = canvas.spare[0][low:]  # free until the blur
+        np.copyto(skirting, (wall_shade * palette[3])[None])
+        cv2.copyTo(skirting, is_skirting.view(np.uint8), img[low:])
+    if r0 < H:  # a faint checker in world coordinates
         floor_d, lateral = lens.floor_d, lens.lateral
         c, s = math.cos(yaw), math.sin(yaw)
         fx = (f32(px / FLOOR_TILE) + floor_d * f32(c / FLOOR_TILE) - lateral * f32(s / FLOOR_TILE))
         fy = (f32(py / FLOOR_TILE) + floor_d * f32(s / FLOOR_TILE) + lateral * f32(c / FLOOR_TILE))
         # whole tiles (exact in float32 here), odd sums on the bright tiles
         odd = (np.floor(fx).astype(np.int32) + np.floor(fy).astype(np.int32)) & 1
-        floor_shade = np.where(odd.astype(bool), lens.floor_light[:, 1:], lens.floor_light[:, :1])
-        np.copyto(depth[r0:], np.broadcast_to(floor_d, on_floor.shape), where=on_floor)
+        floor_mask = on_floor.view(np.uint8)
+        cv2.copyTo(backdrop.floor_dark, floor_mask, img[r0:])
+        cv2.copyTo(backdrop.floor_bright, (on_floor & odd.astype(bool)).view(np.uint8), img[r0:])
+        cv2.copyTo(backdrop.floor_depth, floor_mask, depth[r0:])
     if r1 > 0:
-        np.copyto(depth[:r1], np.broadcast_to(lens.ceil_d, is_ceiling.shape), where=is_ceiling)
-
-    # each channel: colour times shade, class by class (later ones win)
-    floor_bgr, ceiling_bgr, wall_bgr, skirting_bgr = palette
-    for k, lit in enumerate(canvas.channels):
-        np.multiply(wall_shade[None, :], wall_bgr[k], out=lit)
-        np.multiply(wall_shade[None, :], skirting_bgr[k], out=lit[low:], where=is_skirting)
-        if floor_shade is not None:
-            np.multiply(floor_shade, floor_bgr[k], out=lit[r0:], where=on_floor)
-        if r1 > 0:
-            np.multiply(lens.ceil_shade, ceiling_bgr[k], out=lit[:r1], where=is_ceiling)
-    return cv2.merge(canvas.channels, dst=canvas.img), depth
+        ceiling_mask = is_ceiling.view(np.uint8)
+        cv2.copyTo(backdrop.ceiling, ceiling_mask, img[:r1])
+        cv2.copyTo(backdrop.ceiling_depth, ceiling_mask, depth[:r1])
+    return img, depth
 
 
 def _palette(colours: Mapping[str, Any] | None) -> np.ndarray:
