@@ -660,22 +660,25 @@ def test_a_renderer_gives_the_plain_functions_results_frame_after_frame(spec):
 @settings(max_examples=40, deadline=None)
 @given(corners=st.lists(st.tuples(coord, coord), min_size=2, max_size=10),
        radius=st.sampled_from([0.0, 0.05, 0.1]), closed=st.booleans(),
-       posts=st.lists(st.tuples(coord, coord), max_size=3),
+       posts=st.lists(st.integers(0, 9), max_size=3),
        origin=st.tuples(coord, coord), yaw=st.floats(-math.pi, math.pi),
        zoom=st.floats(0.3, 10.0))
 def test_indexed_walls_cast_as_cast_rays_does(corners, radius, closed, posts, origin, yaw, zoom):
     """Walls indexed once (shared ends found for all segments, counted per cast among the
-    ones the wedge keeps) cast bit for bit as cast_rays, for chained walls, posts and wedges
-    from one ray to a full turn."""
+    ones the wedge keeps) cast bit for bit as cast_rays, for chained walls, posts on their
+    corners and wedges from one ray to a full turn."""
     points = np.round(np.array(corners), 2)  # chains share their ends exactly
     chain = np.column_stack([points[:-1], points[1:]])
     if closed:
         chain = np.vstack([chain, np.concatenate([points[-1], points[0]])])
     segments = np.vstack([np.column_stack([chain, np.full(len(chain), radius)]),
-                          np.array([[x, y, x, y, 0.1] for x, y in posts]).reshape(-1, 5)])
+                          np.array([[*points[i % len(points)]] * 2 + [0.1]
+                                    for i in posts]).reshape(-1, 5)])
     walls = Walls(segments)
+    corner = np.arctan2(points[:, 1] - origin[1], points[:, 0] - origin[0])  # where ends differ
     for angles in (np.array([yaw]), yaw + np.arctan2(159.5 - np.arange(320), 360 * zoom),
-                   np.linspace(yaw, yaw + 2 * math.pi, 50)):
+                   np.linspace(yaw, yaw + 2 * math.pi, 50),
+                   *(np.array([a]) for a in np.concatenate([corner - 0.01, corner + 0.01]))):
         want = cast_rays(origin, angles, segments)
         got = walls.cast(origin, angles)
         assert all(g.dtype == w.dtype and np.array_equal(g, w) for g, w in zip(got, want))
