@@ -10,6 +10,13 @@ billboards of their object-catalogue pictures, facing the camera, visual only:
 see the objects section below). The image is then degraded with a
 range-dependent Gaussian blur and seeded Gaussian noise.
 
+:func:`render`, :func:`visible_signs` and :func:`visible_objects` draw one
+frame each. A :class:`CameraRenderer` draws a world frame after frame, as
+the camera block does: it keeps what the world and the last tilt and zoom
+fix (indexed walls, plate corners, per-column and per-row tables, work
+arrays) and casts one set of rays for the image and both ground truths,
+with the same results to the bit.
+
 Frames and conventions
 ----------------------
 * World: REP-103, x forward, y left, yaw counter-clockwise (rad), SI units.
@@ -1229,7 +1236,8 @@ class CameraRenderer:
     it keeps the per-column and per-row tables of the last tilt and zoom; and
     :meth:`frame` casts one set of rays for the image and both ground truths.
     Its results are those of the three functions, bit for bit. The world must
-    not change while a renderer draws it.
+    not change while a renderer draws it, and one renderer draws for one
+    thread (it draws into its own work arrays).
 
     Parameters
     ----------

@@ -639,8 +639,9 @@ def test_a_renderer_gives_the_plain_functions_results_frame_after_frame(spec):
     images and ground truth of fresh render, visible_signs and visible_objects calls."""
     world = _busy_room()
     renderer = CameraRenderer(world, spec)
-    walk = [((0.0, 0.0, 0.0), 0.0, 1.0), ((0.5, 0.3, 0.2), 0.0, 1.0), ((1.0, -0.5, -0.3), 0.2, 1.0),
-            ((1.0, -0.5, 0.6), 0.2, 2.5), ((2.0, 1.0, 1.4), -0.4, 1.0), ((2.0, 1.0, -1.2), 0.0, 1.0),
+    walk = [((0.0, 0.0, 0.0), 0.0, 1.0), ((0.5, 0.3, 0.2), 0.0, 1.0),
+            ((1.0, -0.5, -0.3), 0.2, 1.0), ((1.0, -0.5, 0.6), 0.2, 2.5),
+            ((2.0, 1.0, 1.4), -0.4, 1.0), ((2.0, 1.0, -1.2), 0.0, 1.0),
             ((3.0, 0.0, math.pi), 0.1, 1.3), ((3.0, 0.5, math.pi / 2), 0.3, 1.0),
             ((6.0, 1.0, -0.5), 0.6, 6.0)]
     seen = set()
