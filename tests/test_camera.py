@@ -15,6 +15,7 @@ from sim2d.camera import (
     CameraRenderer,
     CameraSpec,
     Walls,
+    _gaussian_blur,
     camera_pose,
     cast_rays,
     clamp_ptz,
@@ -696,3 +697,13 @@ def test_opencv_draws_the_same_normals_for_one_channel_as_for_three():
         cv2.setRNGSeed(seed)
         cv2.randn(one, 0.0, 3.0)
         assert np.array_equal(three.reshape(24, -1), one)
+
+
+@pytest.mark.parametrize("sigma", [0.6, 1.2, math.sqrt(2.0 ** 2 - 0.25) / 2,
+                                   math.sqrt(3.0 ** 2 - 0.25) / 2])
+def test_the_blur_is_opencvs_gaussian_blur_pixel_for_pixel(sigma):
+    """The camera's blurs (full and half resolution) call the separable filter GaussianBlur
+    is made of; it must give GaussianBlur's pixels, borders included."""
+    image = np.random.default_rng(3).uniform(0, 255, (60, 81, 3)).astype(np.float32)
+    want = cv2.GaussianBlur(image, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    assert np.array_equal(_gaussian_blur(image, sigma), want)
