@@ -1266,7 +1266,7 @@ class CameraRenderer:
         self._palette = _palette(getattr(world, "colours", None))
         self._lens: _Lens | None = None  # of the last tilt and zoom
         self._backdrop: _Backdrop | None = None  # of that lens
-        self._canvas = _Canvas(spec.height, spec.width)
+        self._canvas: _Canvas | None = None  # at the first image
 
     def frame(self, cam_pose, tilt: float, zoom: float, rng: np.random.Generator) -> CameraFrame:
         """The image and the signs and objects in view, from one ray cast (see :func:`render`)."""
@@ -1311,7 +1311,10 @@ class CameraRenderer:
 
     def _image(self, shot: _Shot, plates: list[_PlateView], objects: list[_ObjectView],
                rng: np.random.Generator) -> np.ndarray:
-        spec, canvas, f32 = self.spec, self._canvas, np.float32
+        spec, f32 = self.spec, np.float32
+        if self._canvas is None:
+            self._canvas = _Canvas(spec.height, spec.width)
+        canvas = self._canvas
         img, depth = _scene(shot, spec, self._palette, self._backdrop, canvas)
         # sign plates and objects, far to near
         views: list = [*plates, *objects]
