@@ -306,6 +306,7 @@ class Camera(_RobotBlock):
 
     def reset(self) -> None:
         self._spec = None
+        self._renderer = None  # CameraRenderer of the world being drawn
         self._next_time = 0.0
         self._head = [0.0, 0.0, 1.0]  # pan, tilt, zoom
 
@@ -321,7 +322,7 @@ class Camera(_RobotBlock):
 
     def step(self, sim: Simulation, pan: float = 0.0, tilt: float = 0.0,
              zoom: float = 1.0) -> dict[str, Any]:
-        from .camera import camera_pose, render, visible_objects, visible_signs
+        from .camera import CameraRenderer, camera_pose
         robot = self._robot(sim)
         if self._spec is None:
             self._spec, self._dyn = camera_spec_of(robot.spec)
@@ -331,11 +332,11 @@ class Camera(_RobotBlock):
         if not self._due(self.p.rate_hz or self._dyn["rate_hz"]):
             return {**head, "fresh": False}
         cam = camera_pose(robot.pose, self._spec, self._head[0])
-        image = render(sim.world, cam, self._head[1], self._head[2], self._spec, self.rng)
-        seen = visible_signs(sim.world, cam, self._head[1], self._head[2], self._spec)
-        objects = visible_objects(sim.world, cam, self._head[1], self._head[2], self._spec)
-        return {**head, "image": image, "pose": np.asarray(cam, dtype=np.float64),
-                "fresh": True, "visible": seen, "objects_visible": objects}
+        if self._renderer is None or self._renderer.world is not sim.world:
+            self._renderer = CameraRenderer(sim.world, self._spec)
+        frame = self._renderer.frame(cam, self._head[1], self._head[2], self.rng)
+        return {**head, "image": frame.image, "pose": np.asarray(cam, dtype=np.float64),
+                "fresh": True, "visible": frame.signs, "objects_visible": frame.objects}
 
 
 def right_wall_distance(segments: np.ndarray, pose: np.ndarray, reach: float = 4.0) -> float:

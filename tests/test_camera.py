@@ -12,7 +12,10 @@ from hypothesis import strategies as st
 
 from sim2d.camera import (
     CameraError,
+    CameraRenderer,
     CameraSpec,
+    Walls,
+    _gaussian_blur,
     camera_pose,
     cast_rays,
     clamp_ptz,
@@ -601,3 +604,106 @@ def test_world_colours_repaint_the_walls_and_nothing_else():
     brown.colours = {"floor": (150, 100, 40)}
     c = shot(brown, (0, 0, 0), spec=QUIET).astype(int)
     assert (c[-60:][..., 2] > c[-60:][..., 0] + 40).all() and np.array_equal(a[wall], c[wall])
+
+
+# ---- the renderer: many frames, the plain functions' results ------------------------------------
+def _same_report(a, b):
+    """Ground-truth lists equal to the bit (ndarrays by value and dtype)."""
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        assert x.keys() == y.keys()
+        for key in x:
+            if isinstance(x[key], np.ndarray):
+                assert x[key].dtype == y[key].dtype and np.array_equal(x[key], y[key])
+            else:
+                assert type(x[key]) is type(y[key]) and x[key] == y[key]
+
+
+def _busy_room():
+    """Signs on three walls, objects (scaled, dimmed, covered), a post and building colours."""
+    world = room(-1, -4, 8, 4, signs=[
+        FRONT, Sign("LAB", 8 - HALF, 1.5, math.pi, font="complex", plate=(40, 60, 200)),
+        Sign("OFFICE 7", 3.0, 4 - HALF, -math.pi / 2, spacing=0.2),
+        Sign("BEHIND", 3.0, -4 + HALF, -math.pi / 2)],  # faces away from the room
+        extra=[[5.0, -1.0, 5.0, -1.0]])  # a post
+    world.objects = [WorldObject("Printer", 4.0, 0.0), WorldObject("Printer", 6.5, 2.0, scale=1.5),
+                     WorldObject("Printer", 6.0, -2.5, light=0.5, cover=0.4)]
+    world.colours = {"wall": (200, 190, 170), "floor": (90, 80, 70)}
+    return world
+
+
+@pytest.mark.parametrize("spec", [SPEC, dataclasses.replace(SPEC, noise_std=0.0, width=161,
+                                                              height=97, mount_z=0.05)],
+                         ids=["default", "quiet-small-low"])
+def test_a_renderer_gives_the_plain_functions_results_frame_after_frame(spec):
+    """One renderer's frames (its tables kept across tilt and zoom changes and back) are the
+    images and ground truth of fresh render, visible_signs and visible_objects calls."""
+    world = _busy_room()
+    renderer = CameraRenderer(world, spec)
+    walk = [((0.0, 0.0, 0.0), 0.0, 1.0), ((0.5, 0.3, 0.2), 0.0, 1.0),
+            ((1.0, -0.5, -0.3), 0.2, 1.0), ((1.0, -0.5, 0.6), 0.2, 2.5),
+            ((2.0, 1.0, 1.4), -0.4, 1.0), ((2.0, 1.0, -1.2), 0.0, 1.0),
+            ((3.0, 0.0, math.pi), 0.1, 1.3), ((3.0, 0.5, math.pi / 2), 0.3, 1.0),
+            ((6.0, 1.0, -0.5), 0.6, 6.0)]
+    seen = set()
+    for i, (pose, tilt, zoom) in enumerate(walk):
+        frame = renderer.frame(pose, tilt, zoom, np.random.default_rng(i))
+        image = render(world, pose, tilt, zoom, spec, np.random.default_rng(i))
+        assert frame.image.dtype == np.uint8 and np.array_equal(frame.image, image)
+        _same_report(frame.signs, visible_signs(world, pose, tilt, zoom, spec))
+        _same_report(frame.objects, visible_objects(world, pose, tilt, zoom, spec))
+        assert np.array_equal(renderer.render(pose, tilt, zoom, np.random.default_rng(i)), image)
+        seen |= {s["text"] for s in frame.signs} | {o["index"] for o in frame.objects}
+    assert "BEHIND" not in seen
+    if spec is SPEC:  # the walk shows every plate that faces the room and every object
+        assert {"ROOM 101", "LAB", "OFFICE 7", 0, 1, 2} <= seen
+
+
+@settings(max_examples=40, deadline=None)
+@given(corners=st.lists(st.tuples(coord, coord), min_size=2, max_size=10),
+       radius=st.sampled_from([0.0, 0.05, 0.1]), closed=st.booleans(),
+       posts=st.lists(st.integers(0, 9), max_size=3),
+       origin=st.tuples(coord, coord), yaw=st.floats(-math.pi, math.pi),
+       zoom=st.floats(0.3, 10.0))
+def test_indexed_walls_cast_as_cast_rays_does(corners, radius, closed, posts, origin, yaw, zoom):
+    """Walls indexed once (shared ends found for all segments, counted per cast among the
+    ones the wedge keeps) cast bit for bit as cast_rays, for chained walls, posts on their
+    corners and wedges from one ray to a full turn."""
+    points = np.round(np.array(corners), 2)  # chains share their ends exactly
+    chain = np.column_stack([points[:-1], points[1:]])
+    if closed:
+        chain = np.vstack([chain, np.concatenate([points[-1], points[0]])])
+    segments = np.vstack([np.column_stack([chain, np.full(len(chain), radius)]),
+                          np.array([[*points[i % len(points)]] * 2 + [0.1]
+                                    for i in posts]).reshape(-1, 5)])
+    walls = Walls(segments)
+    corner = np.arctan2(points[:, 1] - origin[1], points[:, 0] - origin[0])  # where ends differ
+    for angles in (np.array([yaw]), yaw + np.arctan2(159.5 - np.arange(320), 360 * zoom),
+                   np.linspace(yaw, yaw + 2 * math.pi, 50),
+                   *(np.array([a]) for a in np.concatenate([corner - 0.01, corner + 0.01]))):
+        want = cast_rays(origin, angles, segments)
+        got = walls.cast(origin, angles)
+        assert all(g.dtype == w.dtype and np.array_equal(g, w) for g, w in zip(got, want))
+
+
+def test_opencv_draws_the_same_normals_for_one_channel_as_for_three():
+    """The camera noise is drawn as one channel (faster in OpenCV): the values must be those
+    a three-channel draw with the same seed, mean and deviation gives, in memory order."""
+    three = np.empty((24, 32, 3), np.float32)
+    one = np.empty((24, 32 * 3), np.float32)
+    for seed in (1, 12345, 2**31 - 2):
+        cv2.setRNGSeed(seed)
+        cv2.randn(three, (0.0, 0.0, 0.0), (3.0, 3.0, 3.0))
+        cv2.setRNGSeed(seed)
+        cv2.randn(one, 0.0, 3.0)
+        assert np.array_equal(three.reshape(24, -1), one)
+
+
+@pytest.mark.parametrize("sigma", [0.6, 1.2, math.sqrt(2.0 ** 2 - 0.25) / 2,
+                                   math.sqrt(3.0 ** 2 - 0.25) / 2])
+def test_the_blur_is_opencvs_gaussian_blur_pixel_for_pixel(sigma):
+    """The camera's blurs (full and half resolution) call the separable filter GaussianBlur
+    is made of; it must give GaussianBlur's pixels, borders included."""
+    image = np.random.default_rng(3).uniform(0, 255, (60, 81, 3)).astype(np.float32)
+    want = cv2.GaussianBlur(image, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    assert np.array_equal(_gaussian_blur(image, sigma), want)
