@@ -18,7 +18,8 @@ three pass:
    one region, so a region needs ``min_inliers`` corners and two squares.
    Door frames and corridor corners (scattered single corners) stop here.
 3. **Votes.** SIFT on each region's crop (``margin`` px around it; a crop a
-   few percent of the frame costs a fraction of the frame's pyramid), and the
+   few percent of the frame costs a fraction of the frame's pyramid; crops
+   covering more than ``max_crop_share`` of the frame skip this step), and the
    recogniser's ratio test against all catalogue descriptors, in the
    catalogue's ``dims`` principal components. The full recogniser needs
    ``min_inliers`` ratio-test matches of one label (10); a region whose best
@@ -63,6 +64,9 @@ class GateParams:
         A region needs this many squares (and ``min_inliers`` corners).
     margin : int
         Crop margin around a region for its SIFT (px).
+    max_crop_share : float
+        When the crops cover more than this share of the frame, the frame goes
+        to the recogniser without votes: their SIFT would cost about as much.
     votes_share : float
         A region needs ``ceil(votes_share * min_inliers)`` ratio-test matches of one label.
     dims : int
@@ -74,6 +78,7 @@ class GateParams:
     cell: int = 16
     min_cells: int = 2
     margin: int = 16
+    max_crop_share: float = 0.5
     votes_share: float = 0.4
     dims: int = 32
 
@@ -82,6 +87,8 @@ class GateParams:
             raise ValueError("cell, min_cells and fast_threshold must be >= 1")
         if self.margin < 0:
             raise ValueError(f"margin must be >= 0, got {self.margin}")
+        if not 0.0 < self.max_crop_share <= 1.0:
+            raise ValueError(f"max_crop_share must be in (0, 1], got {self.max_crop_share}")
         if not 0.0 < self.votes_share <= 1.0:
             raise ValueError(f"votes_share must be in (0, 1], got {self.votes_share}")
         if self.corners_per_inlier < 0 or self.dims < 1:
@@ -223,6 +230,10 @@ class ObjectGate:
         regions = self._large(textured_regions(points, grey.shape[:2], self.params.cell))
         if not regions:
             return "no textured region"
+        crops = [self._crop(grey.shape[:2], r.box) for r in regions]
+        if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in crops) > (
+                self.params.max_crop_share * grey.shape[0] * grey.shape[1]):
+            return "passed"
         if any(self.votes(grey, r.box) >= self.min_votes for r in regions):
             return "passed"
         return "few votes"
@@ -251,17 +262,19 @@ class ObjectGate:
         box : (x0, y0, x1, y1)
             The region (px); the crop adds ``params.margin`` around it.
         """
-        m = self.params.margin
-        h, w = grey.shape[:2]
-        x0, y0, x1, y1 = box
-        crop = grey[max(0, y0 - m):min(h, y1 + m), max(0, x0 - m):min(w, x1 + m)]
-        _, desc = self._detector.detectAndCompute(crop, None)
+        x0, y0, x1, y1 = self._crop(grey.shape[:2], box)
+        _, desc = self._detector.detectAndCompute(grey[y0:y1, x0:x1], None)
         if desc is None or self._labels == 0:
             return 0
         _, train = ratio_matches(self._project(desc), self._projected, self._ratio)
         if len(train) == 0:
             return 0
         return int(np.bincount(self._owner[train], minlength=self._labels).max())
+
+    def _crop(self, shape: tuple[int, int], box: tuple[int, int, int, int]) -> tuple[int, ...]:
+        """A region's box grown by the margin, clipped to the image."""
+        m, (h, w) = self.params.margin, shape
+        return max(0, box[0] - m), max(0, box[1] - m), min(w, box[2] + m), min(h, box[3] + m)
 
     def _project(self, descriptors: np.ndarray) -> np.ndarray:
         # cv2.gemm, not numpy's BLAS, which runs on all cores and stalls on a busy machine
