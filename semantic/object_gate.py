@@ -247,7 +247,7 @@ class ObjectGate:
 
     def _corners(self, grey: np.ndarray) -> np.ndarray:
         corners = self._fast.detect(grey)
-        return np.array([k.pt for k in corners], dtype=np.float32).reshape(-1, 2)
+        return np.asarray(cv2.KeyPoint_convert(corners), dtype=np.float32).reshape(-1, 2)
 
     def _large(self, regions: list[Region]) -> list[Region]:
         return [r for r in regions

@@ -247,7 +247,7 @@ class ObjectRecogniser:
         good_q, train = ratio_matches(desc, self._descriptors, p.ratio, self._norm)
         if len(good_q) < p.min_inliers:
             return []
-        frame_pts = np.array([k.pt for k in kps], dtype=np.float32)[good_q]
+        frame_pts = cv2.KeyPoint_convert(kps)[good_q]  # (N, 2) float32, as the k.pt
         owner = self._owner[train]
         sightings = []
         for m in np.unique(owner):
