@@ -23,16 +23,18 @@ three pass:
    recogniser's ratio test against all catalogue descriptors, in the
    catalogue's ``dims`` principal components. The full recogniser needs
    ``min_inliers`` ratio-test matches of one label (10); a region whose best
-   label gets fewer than ``votes_share * min_inliers`` (4) is no object. Door
-   signs (text on a plate) stop here.
+   label gets fewer than ``votes_share * min_inliers`` (4) is no object. Most
+   door signs stop here; one seen close and head-on can get as many votes as
+   an object and goes on to the recogniser, which finds nothing in it.
 
 What passes goes to the unchanged recogniser on the whole frame, so a frame
 that passes gives exactly the recognitions it gave without the gate. The
 thresholds are measured on every frame the recogniser examines in the office
-and hospital runs: recognised frames have at least 48 corners (gate: 20), at
-least 14 cells and 48 corners in their region (2 and 10) and at least 10 votes
-in their crop (4); see ``benchmarks/object_gate.py``. They are measured for
-SIFT, so the gate serves SIFT only.
+and hospital runs: recognised frames have at least 48 corners (gate: 20),
+regions of at least 34 corners and 10 squares (10 and 2) and at least 10 votes
+in their crop (4); catalogue objects at a quarter of the light or 40 % covered
+keep at least 58 corners and 7 votes. See ``benchmarks/object_gate.py``. The
+thresholds are measured for SIFT, so the gate serves SIFT only.
 """
 from __future__ import annotations
 
