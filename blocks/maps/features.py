@@ -22,11 +22,12 @@ The paper's offline map generator (section 6) builds on this; see
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LinearFeature", "extract_linear_features", "merge_features",
+__all__ = ["FeatureMemo", "LinearFeature", "extract_linear_features", "merge_features",
            "predict_ranges", "sensor_poses_along"]
 
 
@@ -112,7 +113,9 @@ def _feature_from(points: np.ndarray, sensors: np.ndarray, ranges: np.ndarray,
 def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
                             cone_deg: float = 30.0, *, line_tol: float = 0.04,
                             max_gap: float = 0.3, min_points: int = 6,
-                            min_length: float = 0.3, recent: int = 20) -> list[LinearFeature]:
+                            min_length: float = 0.3, recent: int = 20,
+                            ids: np.ndarray | None = None,
+                            memo: FeatureMemo | None = None) -> list[LinearFeature]:
     """Runs of collinear echoes, sensor by sensor, as line features.
 
     Parameters
@@ -133,45 +136,221 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
     recent
         A new echo is tested against the line through the run's last
         ``recent`` echoes.
+    ids, memo
+        With a :class:`FeatureMemo`, the work done on the same scans in an
+        earlier call is looked up instead of repeated (same result): ``ids``
+        (T,) names each scan, and a scan's name must always come with the
+        same pose and readings.
 
     Returns
     -------
     list of LinearFeature
         One per run, not yet merged across sensors (see :func:`merge_features`).
     """
+    if memo is not None:
+        if ids is None:
+            raise ValueError("a memo needs the scans' ids")
+        memo.configure("extract", (float(cone_deg), line_tol, max_gap, min_points, min_length,
+                                   recent), new_call=True)
+        ids = np.ascontiguousarray(ids, dtype=np.int64)
     half = math.radians(cone_deg) / 2
     axis = sensors[..., :2] + ranges[..., None] * np.stack(
         [np.cos(sensors[..., 2]), np.sin(sensors[..., 2])], axis=-1)
     features: list[LinearFeature] = []
+
+    def close(j: int, run: np.ndarray) -> LinearFeature | None:
+        if len(run) < min_points:
+            return None
+        pts = axis[run, j]
+        if np.hypot(*(pts[-1] - pts[0])) < min_length:
+            return None
+        feature = _feature_from(pts, sensors[run, j], ranges[run, j], half)
+        if (feature.length >= min_length and feature.residual <= line_tol
+                and _explains(feature, sensors[run, j], ranges[run, j], cone_deg, 2 * line_tol)):
+            return feature
+        return None
+
+    def breaks_line(j: int, tail: np.ndarray, t: int) -> bool:
+        # the recent part only: odometry drift bends long walls
+        centre, direction = _fit_line(axis[tail, j])
+        p = axis[t, j]
+        return bool(abs(direction[0] * (p[1] - centre[1]) - direction[1] * (p[0] - centre[0]))
+                    > line_tol)
+
+    def first_break(j: int, rows: np.ndarray, status: np.ndarray, start: int) -> int | None:
+        """The first echo after ``start`` (positions in ``rows``) that leaves the line."""
+        end = len(rows)
+        short = status[start, 3:min(recent, end - start)]  # echo start + L, tail from start
+        long = status[start:max(start, end - recent), recent]  # echo k, tail k - recent..k
+        for i in np.flatnonzero(np.concatenate([short, long])).tolist():
+            k = start + 3 + i if i < len(short) else start + recent + i - len(short)
+            if status[k - min(recent, k - start), min(recent, k - start)] == _BREAKS or \
+                    breaks_line(j, rows[max(start, k - recent):k], rows[k]):
+                return k
+        return None
+
+    def segment(j: int, rows: np.ndarray, status: np.ndarray) -> list[LinearFeature]:
+        # A run of echoes no farther apart than max_gap: runs within it end where the
+        # next echo leaves the line (the last echo then starts the next run).
+        found = []
+        start = 0
+        while True:
+            k = first_break(j, rows, status, start)
+            run = rows[start:] if k is None else rows[start:k]
+            found.append(close(j, run) if memo is None
+                         else memo.lookup("run", (j, ids[run].tobytes()), close, j, run))
+            if k is None:
+                return [f for f in found if f is not None]
+            start = k - 1
+
+    # The segments (echoes no farther apart than max_gap) of every sensor, in order; those
+    # not kept in the memo are worked out together.
+    slots: list = []
+    todo: list[tuple[int, int, np.ndarray, tuple | None]] = []
     for j in range(sensors.shape[1]):
         rows = np.flatnonzero(echo[:, j])
-        run: list[int] = []
+        if rows.size == 0:
+            continue
+        pts = axis[rows, j]
+        step = pts[1:] - pts[:-1]
+        gaps = np.flatnonzero(np.hypot(step[:, 0], step[:, 1]) > max_gap) + 1
+        for part in np.split(rows, gaps):
+            key = None if memo is None else (j, ids[part].tobytes())
+            found = None if key is None else memo.get("segment", key)
+            if found is None:
+                todo.append((len(slots), j, part, key))
+            slots.append(found)
+    if todo:
+        flat = np.concatenate([axis[part, j] for _, j, part, _ in todo])
+        status = _line_tests(flat, recent, line_tol)
+        at = 0
+        for slot, j, part, key in todo:
+            found = segment(j, part, status[at:at + len(part)])
+            at += len(part)
+            if key is not None:
+                memo.store("segment", key, found)
+            slots[slot] = found
+    return [f for found in slots for f in found]
 
-        def close(run: list[int]) -> None:
-            if len(run) < min_points:
-                return
-            pts = axis[run, j]
-            if np.hypot(*(pts[-1] - pts[0])) < min_length:
-                return
-            feature = _feature_from(pts, sensors[run, j], ranges[run, j], half)
-            if (feature.length >= min_length and feature.residual <= line_tol
-                    and _explains(feature, sensors[run, j], ranges[run, j], cone_deg,
-                                  2 * line_tol)):
-                features.append(feature)
 
-        for t in rows:
-            p = axis[t, j]
-            if run and np.hypot(*(p - axis[run[-1], j])) > max_gap:
-                close(run)
-                run = []
-            if len(run) >= 3:  # the recent part only: odometry drift bends long walls
-                centre, direction = _fit_line(axis[run[-recent:], j])
-                if abs(direction[0] * (p[1] - centre[1]) - direction[1] * (p[0] - centre[0])) > line_tol:
-                    close(run)
-                    run = run[-1:] if np.hypot(*(p - axis[run[-1], j])) <= max_gap else []
-            run.append(int(t))
-        close(run)
-    return features
+_KEEPS, _BREAKS, _UNSURE = 0, 1, 2
+
+
+def _line_tests(pts: np.ndarray, recent: int, line_tol: float) -> np.ndarray:
+    """Does echo ``s + L`` leave the line through echoes ``s .. s + L - 1``?
+
+    For every start ``s`` and tail length ``3 <= L <= recent``: ``_KEEPS``,
+    ``_BREAKS`` or ``_UNSURE`` (n, recent + 1) int8.  The lines are fitted
+    from running sums, which round differently from :func:`_fit_line`; a
+    test is only decided here when its distance from ``line_tol`` exceeds a
+    bound on both roundings, else it is ``_UNSURE`` and the caller fits
+    exactly, so decisions are those of :func:`_fit_line`.
+    """
+    n = len(pts)
+    status = np.zeros((n, recent + 1), dtype=np.int8)
+    if n < 4:
+        return status
+    offsets = np.arange(recent + 1)
+    idx = np.minimum(np.arange(n)[:, None] + offsets[None, :], n - 1)
+    ref = pts[:, None, :]
+    u = pts[idx] - ref  # (n, recent + 1, 2), relative to the tail's first echo
+    q = u[:, 1:, :]  # the echo tested against a tail of L = 1..recent echoes
+    head = u[:, :-1, :]
+    count = offsets[1:].astype(np.float64)
+    sx, sy = np.cumsum(head[..., 0], axis=1), np.cumsum(head[..., 1], axis=1)
+    sxx = np.cumsum(head[..., 0] ** 2, axis=1)
+    syy = np.cumsum(head[..., 1] ** 2, axis=1)
+    sxy = np.cumsum(head[..., 0] * head[..., 1], axis=1)
+    cx, cy = sx / count, sy / count
+    vxx, vyy, vxy = sxx - count * cx * cx, syy - count * cy * cy, sxy - count * cx * cy
+    angle = 0.5 * np.arctan2(2 * vxy, vxx - vyy)
+    ex, ey = q[..., 0] - cx, q[..., 1] - cy
+    cross = np.cos(angle) * ey - np.sin(angle) * ex
+    # Bounds: sums of <= recent squares round by far less than 1e-11 of their size; an
+    # error e in the scatter turns the line by at most 2 e / |(vxx - vyy, 2 vxy)|.
+    scatter = np.hypot(vxx - vyy, 2 * vxy)
+    size = sxx + syy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        turn = np.where(scatter > 0, 2e-11 * size / scatter, np.inf)
+        slack = np.hypot(ex, ey) * turn + 1e-11 * (1.0 + np.abs(ref).sum(axis=2) + np.sqrt(size))
+        decided = np.abs(np.abs(cross) - line_tol) > slack  # NaN slack (0 * inf): unsure
+    out = np.where(decided, np.where(np.abs(cross) > line_tol, _BREAKS, _KEEPS), _UNSURE)
+    status[:, 1:] = out
+    status[:, :3] = _KEEPS
+    status[np.arange(n)[:, None] + offsets[None, :] >= n] = _KEEPS  # past the last echo
+    return status
+
+
+class FeatureMemo:
+    """Work of :func:`extract_linear_features` and :func:`merge_features` kept between calls.
+
+    When the scans of one call recur in the next (a sliding window), most
+    runs, line tests and merges are the same; this keeps them, keyed by the
+    scans' ids and by the features' identities, and the results are those of
+    a call without the memo.  What goes unused for ``max_age`` extractions is
+    dropped, so the memo stays the size of a few windows.
+    """
+
+    def __init__(self, max_age: int = 4) -> None:
+        self.max_age = max_age
+        self._configs: dict[str, tuple] = {}
+        self._new: dict = {}
+        self._old: dict = {}
+        self._calls = 0
+        self._serials: dict[int, tuple[int, weakref.ref, float]] = {}
+        self._next_serial = 0
+        self.hits = 0
+        self.misses = 0
+
+    def configure(self, name: str, config: tuple, new_call: bool = False) -> None:
+        """Forget everything when ``name``'s parameters change; age entries on a new call."""
+        if self._configs.get(name) != config:
+            self._configs[name] = config
+            self._new, self._old = {}, {}
+        if new_call:
+            self._calls += 1
+            if self._calls % self.max_age == 0:  # what was not used since the last turn goes
+                self._old, self._new = self._new, {}
+                self._serials = {k: e for k, e in self._serials.items() if e[1]() is not None}
+
+    def get(self, kind: str, key: tuple):
+        """The value kept under ``key``, or None."""
+        found = self._new.get((kind, key))
+        if found is None:
+            found = self._old.get((kind, key))
+            if found is None:
+                self.misses += 1
+                return None
+            self._new[(kind, key)] = found
+        self.hits += 1
+        return found[0]
+
+    def store(self, kind: str, key: tuple, value) -> None:
+        self._new[(kind, key)] = (value,)
+
+    def lookup(self, kind: str, key: tuple, compute, *args):
+        """The value kept under ``key``, else ``compute(*args)`` (then kept)."""
+        found = self._new.get((kind, key))
+        if found is None:
+            found = self._old.get((kind, key))
+            if found is None:
+                self.misses += 1
+                found = (compute(*args),)
+            else:
+                self.hits += 1
+            self._new[(kind, key)] = found
+        else:
+            self.hits += 1
+        return found[0]
+
+    def serial(self, feature: LinearFeature) -> tuple[int, float]:
+        """A number naming ``feature`` for as long as it lives, and its length."""
+        entry = self._serials.get(id(feature))
+        if entry is None or entry[1]() is not feature:
+            entry = (self._next_serial, weakref.ref(feature), feature.length)
+            self._next_serial += 1
+            self._serials[id(feature)] = entry
+        return entry[0], entry[2]
 
 
 def _explains(feature: LinearFeature, sensors: np.ndarray, ranges: np.ndarray,
@@ -228,7 +407,8 @@ def _refit(points: np.ndarray, normal_hint: np.ndarray) -> LinearFeature:
 
 
 def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
-                   offset_tol: float = 0.1, max_gap: float = 0.3) -> list[LinearFeature]:
+                   offset_tol: float = 0.1, max_gap: float = 0.3,
+                   memo: FeatureMemo | None = None) -> list[LinearFeature]:
     """Merge features that are the same wall seen by several sensors or at several times.
 
     Two features merge when they face the same way within ``angle_tol_deg``,
@@ -236,22 +416,47 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
     they overlap or leave a gap of at most ``max_gap`` (m) along it.  The
     merged feature is refitted to the union of the echoes, so support adds up.
     Features are merged longest first, which keeps the result deterministic.
+    With a :class:`FeatureMemo`, tests and merges of the same two features
+    made in an earlier call are looked up (same result).
     """
-    pool = sorted(features, key=lambda f: (-f.support, -f.length))
     angle_tol = math.radians(angle_tol_deg)
-    merged = True
-    while merged:
-        merged = False
+    if memo is None:
+        def order(f: LinearFeature) -> tuple[int, float]:
+            return -f.support, -f.length
+
+        def mergeable(g: LinearFeature, f: LinearFeature) -> bool:
+            return _mergeable(g, f, angle_tol, offset_tol, max_gap)
+
+        def merged(g: LinearFeature, f: LinearFeature) -> LinearFeature:
+            return _refit(np.vstack([g.points, f.points]), g.normal)
+    else:
+        memo.configure("merge", (angle_tol_deg, offset_tol, max_gap))
+
+        def order(f: LinearFeature) -> tuple[int, float]:
+            return -f.support, -memo.serial(f)[1]
+
+        def mergeable(g: LinearFeature, f: LinearFeature) -> bool:
+            return memo.lookup("mergeable", (memo.serial(g)[0], memo.serial(f)[0]), _mergeable,
+                               g, f, angle_tol, offset_tol, max_gap)
+
+        def merged(g: LinearFeature, f: LinearFeature) -> LinearFeature:
+            return memo.lookup("merged", (memo.serial(g)[0], memo.serial(f)[0]),
+                               lambda: _refit(np.vstack([g.points, f.points]), g.normal))
+
+    pool = sorted(features, key=order)
+    merged_any = True
+    while merged_any:
+        merged_any = False
         out: list[LinearFeature] = []
         for f in pool:
             for i, g in enumerate(out):
-                if _mergeable(g, f, angle_tol, offset_tol, max_gap):
-                    out[i] = _refit(np.vstack([g.points, f.points]), g.normal)
-                    merged = True
+                if mergeable(g, f):
+                    out[i] = merged(g, f)
+                    merged_any = True
                     break
             else:
                 out.append(f)
-        pool = sorted(out, key=lambda f: (-f.support, -f.length))
+        pool = sorted(out, key=order)
     return pool
 
 
