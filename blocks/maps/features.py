@@ -158,15 +158,15 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
         [np.cos(sensors[..., 2]), np.sin(sensors[..., 2])], axis=-1)
     features: list[LinearFeature] = []
 
-    def close(j: int, run: np.ndarray) -> LinearFeature | None:
+    def candidate(j: int, run: np.ndarray) -> LinearFeature | None:
+        """The feature of a run, if it is long and straight enough (see :func:`_explains`)."""
         if len(run) < min_points:
             return None
         pts = axis[run, j]
         if np.hypot(*(pts[-1] - pts[0])) < min_length:
             return None
         feature = _feature_from(pts, sensors[run, j], ranges[run, j], half)
-        if (feature.length >= min_length and feature.residual <= line_tol
-                and _explains(feature, sensors[run, j], ranges[run, j], cone_deg, 2 * line_tol)):
+        if feature.length >= min_length and feature.residual <= line_tol:
             return feature
         return None
 
@@ -189,19 +189,41 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
                 return k
         return None
 
-    def segment(j: int, rows: np.ndarray, status: np.ndarray) -> list[LinearFeature]:
+    def segment(j: int, rows: np.ndarray, status: np.ndarray) -> list[np.ndarray]:
         # A run of echoes no farther apart than max_gap: runs within it end where the
         # next echo leaves the line (the last echo then starts the next run).
-        found = []
+        runs = []
         start = 0
         while True:
             k = first_break(j, rows, status, start)
-            run = rows[start:] if k is None else rows[start:k]
-            found.append(close(j, run) if memo is None
-                         else memo.lookup("run", (j, ids[run].tobytes()), close, j, run))
+            runs.append(rows[start:] if k is None else rows[start:k])
             if k is None:
-                return [f for f in found if f is not None]
+                return runs
             start = k - 1
+
+    def features_of(runs: list[tuple[int, np.ndarray]]) -> list[LinearFeature | None]:
+        """Each run's feature, or None; the readings check of all runs at once."""
+        out: list[LinearFeature | None] = [None] * len(runs)
+        checks = []
+        for i, (j, run) in enumerate(runs):
+            key = None if memo is None else (j, ids[run].tobytes())
+            found = None if key is None else memo.get("run", key)
+            if found is not None:
+                out[i] = found[0]
+                continue
+            feature = candidate(j, run)
+            if feature is not None:
+                checks.append((i, feature, sensors[run, j], ranges[run, j]))
+            elif key is not None:
+                memo.store("run", key, (None,))
+        if checks:
+            fine = _explained(checks, cone_deg, 2 * line_tol)
+            for (i, feature, _, _), ok in zip(checks, fine):
+                out[i] = feature if ok else None
+                if memo is not None:
+                    j, run = runs[i]
+                    memo.store("run", (j, ids[run].tobytes()), (out[i],))
+        return out
 
     # The segments (echoes no farther apart than max_gap) of every sensor, in order; those
     # not kept in the memo are worked out together.
@@ -224,12 +246,21 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
         flat = np.concatenate([axis[part, j] for _, j, part, _ in todo])
         status = _line_tests(flat, recent, line_tol)
         at = 0
-        for slot, j, part, key in todo:
-            found = segment(j, part, status[at:at + len(part)])
+        runs: list[tuple[int, np.ndarray]] = []
+        owner: list[int] = []
+        for n, (_, j, part, _) in enumerate(todo):
+            for run in segment(j, part, status[at:at + len(part)]):
+                runs.append((j, run))
+                owner.append(n)
             at += len(part)
+        mine: list[list[LinearFeature]] = [[] for _ in todo]
+        for f, n in zip(features_of(runs), owner):
+            if f is not None:
+                mine[n].append(f)
+        for (slot, _, _, key), found in zip(todo, mine):
+            slots[slot] = found
             if key is not None:
                 memo.store("segment", key, found)
-            slots[slot] = found
     return [f for found in slots for f in found]
 
 
@@ -353,6 +384,23 @@ class FeatureMemo:
         return entry[0], entry[2]
 
 
+def _explained(checks: list[tuple[int, LinearFeature, np.ndarray, np.ndarray]],
+               cone_deg: float, tol: float, share: float = 0.8) -> list[bool]:
+    """:func:`_explains` for many (index, feature, sensors, ranges) at once (same answers:
+    the cone geometry is worked out element by element either way)."""
+    from sim2d.sonar import nearest_in_cone
+    sizes = np.array([len(c[2]) for c in checks])
+    sensors = np.concatenate([c[2] for c in checks])
+    ranges = np.concatenate([c[3] for c in checks])
+    segments = np.repeat(np.array([[*c[1].p0, *c[1].p1, 0.0] for c in checks]), sizes, axis=0)
+    dist = nearest_in_cone(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
+                           np.sin(sensors[:, 2]), segments, math.radians(cone_deg) / 2)[0]
+    predicted = np.where(np.isfinite(dist), np.maximum(dist, 0.0), np.inf)
+    agree = np.add.reduceat((np.abs(predicted - ranges) <= tol).astype(np.float64),
+                            np.cumsum(sizes) - sizes)
+    return [bool(a / n >= share) for a, n in zip(agree.tolist(), sizes.tolist())]
+
+
 def _explains(feature: LinearFeature, sensors: np.ndarray, ranges: np.ndarray,
               cone_deg: float, tol: float, share: float = 0.8) -> bool:
     """Would a sonar read what these sensors read if the feature were the wall?
@@ -461,21 +509,49 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
 
 
 def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg: float,
-                   max_range: float, chunk: int = 4096) -> np.ndarray:
+                   max_range: float, chunk: int = 4096, *, ids: np.ndarray | None = None,
+                   memo: FeatureMemo | None = None) -> np.ndarray:
     """The range at which each sensor's cone first meets a feature (``inf`` if none).
 
     ``sensors`` is (M, 3).  Uses the simulator's exact cone geometry
     (:func:`sim2d.sonar.cone_ranges`), so a prediction is what a sonar would
-    read if the features were the only walls.
+    read if the features were the only walls.  With a :class:`FeatureMemo`
+    and ``ids`` (M,) naming the sensor poses, each feature's ranges for poses
+    it was met with in the last call are looked up (same result: the
+    geometry is worked out element by element, the nearest taken exactly).
     """
-    from sim2d.sonar import cone_ranges
+    from sim2d.sonar import cone_ranges, nearest_in_cone
 
     sensors = np.asarray(sensors, dtype=np.float64).reshape(-1, 3)
     if not features:
         return np.full(len(sensors), np.inf)
+    half = math.radians(cone_deg) / 2
+    if memo is not None:
+        if ids is None:
+            raise ValueError("a memo needs the sensors' ids")
+        ids = np.asarray(ids, dtype=np.int64)
+        memo.configure("predict", (float(cone_deg), float(max_range)))
+        c, s = np.cos(sensors[:, 2]), np.sin(sensors[:, 2])
+        out = np.full(len(sensors), np.inf)
+        for f in features:
+            key = memo.serial(f)[0]
+            known = memo.get("predict", key)
+            ranges = np.empty(len(sensors))
+            todo = np.ones(len(sensors), dtype=bool)
+            if known is not None:
+                known_ids, known_ranges = known
+                at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
+                todo = known_ids[at] != ids
+                ranges[~todo] = known_ranges[at[~todo]]
+            i = np.flatnonzero(todo)
+            segment = np.array([*f.p0, *f.p1, 0.0])
+            dist = nearest_in_cone(sensors[i, 0], sensors[i, 1], c[i], s[i], segment, half)[0]
+            ranges[i] = np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf)
+            memo.store("predict", key, (ids, ranges))
+            np.minimum(out, ranges, out=out)
+        return out
     segments = np.array([[*f.p0, *f.p1, 0.0] for f in features])
     out = np.empty(len(sensors))
-    half = math.radians(cone_deg) / 2
     for start in range(0, len(sensors), chunk):
         part = sensors[start:start + chunk]
         out[start:start + chunk], _ = cone_ranges(part, segments, half, max_range)

@@ -120,8 +120,9 @@ class LocalMaps:
         features = [f for f in merge_features(found, memo=self._memo)
                     if f.support >= p.min_support]
         flat = sensors.reshape(-1, 3)
-        predicted = predict_ranges(flat, features, self.cone_deg, self.max_range
-                                   ).reshape(ranges.shape)
+        keys = (index[:, None] * len(self.mounts) + np.arange(len(self.mounts))).ravel()
+        predicted = predict_ranges(flat, features, self.cone_deg, self.max_range, ids=keys,
+                                   memo=self._memo).reshape(ranges.shape)
         cls = classify_readings(ranges, echo, predicted, self.max_range, p.agree_tol)
         free_to, hit_at, weight = reading_model(ranges, echo, cls, predicted, self.max_range, p)
         col, row, degree, free, lo, hi = beam_codes(flat, free_to, hit_at, p.resolution,
@@ -130,7 +131,6 @@ class LocalMaps:
                       (p.l_free * weight).astype(np.float32).astype(np.float64),
                       (p.l_occ * weight).astype(np.float32).astype(np.float64))
         corner, shape = grid_extent(flat, self.reach, p.resolution)
-        keys = (index[:, None] * len(self.mounts) + np.arange(len(self.mounts))).ravel()
         log_odds, seen = self._sums(keys, beams, (corner[1], corner[0]), shape)
         m = finish_map(log_odds, seen, corner, features, p)
         return OfflineMap(map=m, features=features, reading_class=cls, predicted=predicted,
