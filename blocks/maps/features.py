@@ -433,6 +433,33 @@ def _mergeable(a: LinearFeature, b: LinearFeature, angle_tol: float, offset_tol:
     return gap_along(a, b) <= max_gap
 
 
+def _mergeable_quick(a: tuple, b: tuple, cos_tol: float, offset_tol: float,
+                     max_gap: float, slack: float = 1e-9) -> bool | None:
+    """:func:`_mergeable` in plain floats, from (nx, ny, x0, y0, x1, y1, ...) tuples; None
+    when a test lands within ``slack`` of its bound, where the two roundings (a few
+    units in the last place of metres) could disagree."""
+    anx, any_, ax0, ay0, ax1, ay1 = a[:6]
+    bnx, bny, bx0, by0, bx1, by1 = b[:6]
+    dot = anx * bnx + any_ * bny
+    if abs(dot - cos_tol) <= slack:
+        return None
+    if dot < cos_tol:
+        return False
+    o0 = abs((bx0 - ax0) * anx + (by0 - ay0) * any_)
+    o1 = abs((bx1 - ax0) * anx + (by1 - ay0) * any_)
+    if abs(o0 - offset_tol) <= slack or abs(o1 - offset_tol) <= slack:
+        return None
+    if max(o0, o1) > offset_tol:
+        return False
+    dx, dy = any_, -anx  # along a's line, as gap_along
+    a0, a1 = sorted((0.0, (ax1 - ax0) * dx + (ay1 - ay0) * dy))
+    b0, b1 = sorted(((bx0 - ax0) * dx + (by0 - ay0) * dy, (bx1 - ax0) * dx + (by1 - ay0) * dy))
+    gap = max(a0, b0) - min(a1, b1)
+    if abs(gap - max_gap) <= slack:
+        return None
+    return gap <= max_gap
+
+
 def moved(f: LinearFeature, rotation: np.ndarray, pivot: np.ndarray,
           shift: np.ndarray) -> LinearFeature:
     """The feature after the rigid motion x -> pivot + rotation (x - pivot) + shift."""
@@ -464,32 +491,35 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
     they overlap or leave a gap of at most ``max_gap`` (m) along it.  The
     merged feature is refitted to the union of the echoes, so support adds up.
     Features are merged longest first, which keeps the result deterministic.
-    With a :class:`FeatureMemo`, tests and merges of the same two features
-    made in an earlier call are looked up (same result).
+    With a :class:`FeatureMemo`, merges of the same two features made in an
+    earlier call are looked up (same result).
     """
     angle_tol = math.radians(angle_tol_deg)
-    if memo is None:
-        def order(f: LinearFeature) -> tuple[int, float]:
-            return -f.support, -f.length
-
-        def mergeable(g: LinearFeature, f: LinearFeature) -> bool:
-            return _mergeable(g, f, angle_tol, offset_tol, max_gap)
-
-        def merged(g: LinearFeature, f: LinearFeature) -> LinearFeature:
-            return _refit(np.vstack([g.points, f.points]), g.normal)
-    else:
+    cos_tol = math.cos(angle_tol)
+    if memo is not None:
         memo.configure("merge", (angle_tol_deg, offset_tol, max_gap))
+    known: dict[int, tuple] = {}  # per feature met (kept alive here): its numbers as floats
 
-        def order(f: LinearFeature) -> tuple[int, float]:
-            return -f.support, -memo.serial(f)[1]
+    def numbers(f: LinearFeature) -> tuple:
+        entry = known.get(id(f))
+        if entry is None:
+            serial, length = memo.serial(f) if memo is not None else (-1, f.length)
+            entry = known[id(f)] = (*f.normal.tolist(), *f.p0.tolist(), *f.p1.tolist(),
+                                    length, serial, f)
+        return entry
 
-        def mergeable(g: LinearFeature, f: LinearFeature) -> bool:
-            return memo.lookup("mergeable", (memo.serial(g)[0], memo.serial(f)[0]), _mergeable,
-                               g, f, angle_tol, offset_tol, max_gap)
+    def order(f: LinearFeature) -> tuple[int, float]:
+        return -f.support, -numbers(f)[6]
 
-        def merged(g: LinearFeature, f: LinearFeature) -> LinearFeature:
-            return memo.lookup("merged", (memo.serial(g)[0], memo.serial(f)[0]),
-                               lambda: _refit(np.vstack([g.points, f.points]), g.normal))
+    def mergeable(g: LinearFeature, f: LinearFeature) -> bool:
+        sure = _mergeable_quick(numbers(g), numbers(f), cos_tol, offset_tol, max_gap)
+        return _mergeable(g, f, angle_tol, offset_tol, max_gap) if sure is None else sure
+
+    def merged(g: LinearFeature, f: LinearFeature) -> LinearFeature:
+        if memo is None:
+            return _refit(np.vstack([g.points, f.points]), g.normal)
+        return memo.lookup("merged", (numbers(g)[7], numbers(f)[7]),
+                           lambda: _refit(np.vstack([g.points, f.points]), g.normal))
 
     pool = sorted(features, key=order)
     merged_any = True
