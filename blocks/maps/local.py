@@ -15,7 +15,8 @@ The features, predictions and reading classes are those of
 :func:`~blocks.maps.offline.build_offline_map`; the log-odds are the exact
 sums of the same beams, where the offline map rounds each addition to
 float32 (a difference of about 1e-6 per beam, far below what moves a cell
-between free, unknown and occupied).
+between free, unknown and occupied), and a cell whose beams cancel out
+exactly is left unknown (NaN) instead of 1/2 (unknown too).
 """
 from __future__ import annotations
 
@@ -131,7 +132,7 @@ class LocalMaps:
                       (p.l_free * weight).astype(np.float32).astype(np.float64),
                       (p.l_occ * weight).astype(np.float32).astype(np.float64))
         corner, shape = grid_extent(flat, self.reach, p.resolution)
-        log_odds, seen = self._sums(keys, beams, (corner[1], corner[0]), shape)
-        m = finish_map(log_odds, seen, corner, features, p)
+        log_odds = self._sums(keys, beams, (corner[1], corner[0]), shape)
+        m = finish_map(log_odds, log_odds != 0, corner, features, p)
         return OfflineMap(map=m, features=features, reading_class=cls, predicted=predicted,
                           poses=poses)

@@ -20,6 +20,10 @@ A reading ("beam") is given by codes in half cells, as in the offline map:
 its free space covers the cone's cells with a range code below ``free``, its
 echo darkens the cells with ``lo <= code <= hi`` (``hi < lo``: no echo), the
 echo winning where the two meet.
+
+Which cells a reading touched is not kept: a cell whose sum is not 0 was
+touched, and a touched cell whose readings cancel out exactly has
+probability 1/2, unknown like an untouched one.
 """
 from __future__ import annotations
 
@@ -71,8 +75,7 @@ class Beams:
                                ).astype(np.float64)
 
 
-def beam_terms(beams: Beams, limit: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                  np.ndarray]:
+def beam_terms(beams: Beams, limit: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each reading as a signed sum of cut cones ``{code < t}``.
 
     A reading adds ``free_value`` where ``code < free`` and not darkened, and
@@ -83,17 +86,16 @@ def beam_terms(beams: Beams, limit: int) -> tuple[np.ndarray, np.ndarray, np.nda
 
     Returns
     -------
-    beam, t, value, count
-        One row per term: the reading, the code bound ``t`` (1..limit), the
-        log-odds and the change of the "some reading touched this cell" count
-        (readings whose log-odds are 0 touch nothing).
+    beam, t, value
+        One row per term: the reading, the code bound ``t`` (1..limit) and
+        the log-odds.
 
     Examples
     --------
     >>> b = Beams(*[np.array([v]) for v in (0, 0, 0, 6, 6, 9, -0.4, 0.85)])
-    >>> beam, t, value, count = beam_terms(b, limit=100)
-    >>> t.tolist(), value.tolist(), count.tolist()
-    ([6, 10, 6], [-0.4, 0.85, -0.85], [1, 1, -1])
+    >>> beam, t, value = beam_terms(b, limit=100)
+    >>> t.tolist(), value.tolist()
+    ([6, 10, 6], [-0.4, 0.85, -0.85])
     """
     free = beams.free
     occ = beams.hi >= beams.lo
@@ -101,11 +103,9 @@ def beam_terms(beams: Beams, limit: int) -> tuple[np.ndarray, np.ndarray, np.nda
     l = np.where(occ, np.maximum(np.minimum(beams.lo, h), 0), 0)  # noqa: E741
     live = np.maximum(free, beams.hi) > 0  # as the offline map: nothing when both bounds are 0
     fv, ov = beams.free_value, beams.occ_value
-    fn, on = (fv != 0).astype(np.int64), (ov != 0).astype(np.int64)
     t = np.stack([free, np.minimum(free, h), np.minimum(free, l), h, l], axis=1)
     value = np.stack([fv, -fv, fv, ov, -ov], axis=1)
-    count = np.stack([fn, -fn, fn, on, -on], axis=1)
-    keep = live[:, None] & (t > 0) & ((value != 0) | (count != 0))
+    keep = live[:, None] & (t > 0) & (value != 0)
     # S(a) - S(a) terms cancel: drop pairs of equal bounds with opposite signs
     same_fh = t[:, 0] == t[:, 1]
     keep[:, 0] &= ~same_fh
@@ -114,12 +114,12 @@ def beam_terms(beams: Beams, limit: int) -> tuple[np.ndarray, np.ndarray, np.nda
     keep[:, 3] &= ~same_hl
     keep[:, 4] &= ~same_hl
     beam = np.broadcast_to(np.arange(len(free))[:, None], t.shape)
-    return beam[keep], np.minimum(t[keep], limit), value[keep], count[keep]
+    return beam[keep], np.minimum(t[keep], limit), value[keep]
 
 
 def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: int
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The difference-grid entries of ``beams``: flat indices, log-odds and counts.
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The difference-grid entries of ``beams``: flat indices and log-odds.
 
     The grid's element [0, 0] is cell ``corner`` = (row, col); its rows are
     ``stride`` long (one more than the map is wide, for the ends of runs that
@@ -127,7 +127,7 @@ def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: in
     the disk cuts away entirely starts and ends at the same place: its two
     entries cancel.
     """
-    beam, t, value, count = beam_terms(beams, spans.limit)
+    beam, t, value = beam_terms(beams, spans.limit)
     degree = beams.degree[beam]
     y = spans.rows_below[t]
     e0 = spans.first[degree, spans.reach - y]
@@ -143,35 +143,29 @@ def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: in
     a += base
     b += base
     v = np.repeat(value, n)
-    c = np.repeat(count.astype(np.float64), n)
-    return np.concatenate([a, b]), np.concatenate([v, -v]), np.concatenate([c, -c])
+    return np.concatenate([a, b]), np.concatenate([v, -v])
 
 
 def sum_beams(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
-              shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Log-odds (float64) and "touched" (bool) of ``beams`` on a grid of ``shape`` at ``corner``.
+              shape: tuple[int, int]) -> np.ndarray:
+    """The log-odds (float64) of ``beams`` on a grid of ``shape`` at ``corner``.
 
     The sums are exact for :func:`exact_weights` log-odds, else within float64 rounding.
     """
-    diff, touched = _difference_grids(spans, beams, corner, shape)
-    return _integrate(diff, touched, shape[1])
+    return _integrate(_difference_grid(spans, beams, corner, shape), shape[1])
 
 
-def _difference_grids(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
-                      shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+def _difference_grid(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
+                     shape: tuple[int, int]) -> np.ndarray:
     h, w = shape
-    index, value, count = run_ends(spans, beams, corner, w + 1)
+    index, value = run_ends(spans, beams, corner, w + 1)
     if index.size and (index.min() < 0 or index.max() >= h * (w + 1)):
         raise ValueError("a reading's cone reaches outside the grid")
-    size = h * (w + 1)
-    return (np.bincount(index, value, minlength=size).reshape(h, w + 1),
-            np.bincount(index, count, minlength=size).reshape(h, w + 1))
+    return np.bincount(index, value, minlength=h * (w + 1)).reshape(h, w + 1)
 
 
-def _integrate(diff: np.ndarray, touched: np.ndarray, width: int
-               ) -> tuple[np.ndarray, np.ndarray]:
-    return (np.cumsum(diff, axis=1)[:, :width],
-            np.cumsum(touched, axis=1)[:, :width] > 0.5)
+def _integrate(diff: np.ndarray, width: int) -> np.ndarray:
+    return np.cumsum(diff, axis=1)[:, :width]
 
 
 def exact_weights(values: np.ndarray, readings: int) -> bool:
@@ -209,7 +203,6 @@ class _State:
     beams: Beams
     corner: tuple[int, int]
     diff: np.ndarray  # (H, W + 1) log-odds difference grid
-    touched: np.ndarray  # (H, W + 1) count difference grid
 
 
 class BeamSums:
@@ -226,7 +219,7 @@ class BeamSums:
     spans
         The cone runs (:func:`blocks.maps.cones.cone_spans`).
     keep
-        How many past calls to keep (each holds two float64 grids).
+        How many past calls to keep (each holds a float64 grid).
     """
 
     def __init__(self, spans: ConeSpans, keep: int = 6) -> None:
@@ -236,24 +229,23 @@ class BeamSums:
         self.readings_drawn = 0  # readings added or subtracted, over all calls (for tests)
 
     def __call__(self, keys: np.ndarray, beams: Beams, corner: tuple[int, int],
-                 shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-        """Log-odds and "touched" of ``beams`` (keys sorted, unique) on the grid at ``corner``."""
+                 shape: tuple[int, int]) -> np.ndarray:
+        """The log-odds of ``beams`` (keys sorted, unique) on the grid at ``corner``."""
         keys = np.asarray(keys, dtype=np.int64)
         table = beams.table()
         exact = exact_weights(np.concatenate([beams.free_value, beams.occ_value]),
                               2 * len(beams))
         base, plan = self._best_start(keys, table) if exact else (None, None)
-        h, w = shape
         if base is None:
-            diff, touched = _difference_grids(self.spans, beams, corner, shape)
+            diff = _difference_grid(self.spans, beams, corner, shape)
             self.readings_drawn += len(beams)
         else:
             gone, new = plan
-            diff, touched = self._update(base, beams, gone, new, corner, shape)
+            diff = self._update(base, beams, gone, new, corner, shape)
         if exact:
-            self._states.insert(0, _State(keys, table, beams, corner, diff, touched))
+            self._states.insert(0, _State(keys, table, beams, corner, diff))
             del self._states[self.keep:]
-        return _integrate(diff, touched, w)
+        return _integrate(diff, shape[1])
 
     def _best_start(self, keys: np.ndarray, table: np.ndarray):
         """The kept call that needs the fewest readings changed, and what to change."""
@@ -273,7 +265,7 @@ class BeamSums:
         return best, best_plan
 
     def _update(self, base: _State, beams: Beams, gone: np.ndarray, new: np.ndarray,
-                corner: tuple[int, int], shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+                corner: tuple[int, int], shape: tuple[int, int]) -> np.ndarray:
         h, w = shape
         bh, bw = base.diff.shape[0], base.diff.shape[1] - 1
         r0, c0 = min(corner[0], base.corner[0]), min(corner[1], base.corner[1])
@@ -282,19 +274,13 @@ class BeamSums:
         union = (r1 - r0, c1 - c0)
         stride = union[1] + 1
         diff = np.zeros((union[0], stride))
-        touched = np.zeros((union[0], stride))
         br, bc = base.corner[0] - r0, base.corner[1] - c0
         diff[br:br + bh, bc:bc + bw + 1] = base.diff
-        touched[br:br + bh, bc:bc + bw + 1] = base.touched
-        i_old, v_old, n_old = run_ends(self.spans, base.beams.take(gone), (r0, c0), stride)
-        i_new, v_new, n_new = run_ends(self.spans, beams.take(new), (r0, c0), stride)
-        index = np.concatenate([i_old, i_new])
-        size = union[0] * stride
-        diff += np.bincount(index, np.concatenate([-v_old, v_new]), minlength=size
-                            ).reshape(union[0], stride)
-        touched += np.bincount(index, np.concatenate([-n_old, n_new]), minlength=size
-                               ).reshape(union[0], stride)
+        i_old, v_old = run_ends(self.spans, base.beams.take(gone), (r0, c0), stride)
+        i_new, v_new = run_ends(self.spans, beams.take(new), (r0, c0), stride)
+        diff += np.bincount(np.concatenate([i_old, i_new]), np.concatenate([-v_old, v_new]),
+                            minlength=union[0] * stride).reshape(union[0], stride)
         self.readings_drawn += len(gone) + len(new)
         nr, nc = corner[0] - r0, corner[1] - c0
         # what lies outside the new grid has cancelled to exactly 0
-        return (diff[nr:nr + h, nc:nc + w + 1].copy(), touched[nr:nr + h, nc:nc + w + 1].copy())
+        return diff[nr:nr + h, nc:nc + w + 1].copy()
