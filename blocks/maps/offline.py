@@ -301,6 +301,7 @@ def finish_map(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
     probabilities (NaN where nothing was seen).  ``log_odds`` and ``seen`` change."""
     _draw_features(log_odds, seen, corner, features, p)
     np.clip(log_odds, -p.clamp, p.clamp, out=log_odds)
-    occupancy = np.where(seen, log_odds_to_probability(log_odds.astype(np.float64)), np.nan)
+    occupancy = np.where(seen, log_odds_to_probability(np.asarray(log_odds, dtype=np.float64)),
+                         np.nan)
     res = p.resolution
     return OccupancyMap(occupancy, res, (corner[0] * res, corner[1] * res, 0.0))

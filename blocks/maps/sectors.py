@@ -251,8 +251,9 @@ class BeamSums:
         """The kept call that needs the fewest readings changed, and what to change."""
         best, best_cost, best_plan = None, len(keys), None
         for state in self._states:
-            common, i_old, i_new = np.intersect1d(state.keys, keys, assume_unique=True,
-                                                  return_indices=True)
+            at = np.minimum(np.searchsorted(state.keys, keys), len(state.keys) - 1)
+            i_new = np.flatnonzero(state.keys[at] == keys)  # keys sorted and unique in both
+            i_old = at[i_new]
             same = (state.table[i_old] == table[i_new]).all(axis=1)
             kept_old = np.zeros(len(state.keys), dtype=bool)
             kept_old[i_old[same]] = True
