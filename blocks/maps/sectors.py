@@ -136,14 +136,21 @@ def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: in
     entry = np.arange(total, dtype=np.int64)
     entry += np.repeat(e0 - (np.cumsum(n) - n), n)
     w = spans.half_width.ravel()[np.repeat(t * (spans.reach + 1), n) + spans.abs_row[entry]]
-    a = np.maximum(spans.start[entry], -w)
-    b = np.maximum(np.minimum(spans.stop[entry], w + 1), a)
-    base = np.repeat((beams.row[beam] - corner[0]) * stride + beams.col[beam] - corner[1], n)
-    base += spans.row[entry] * stride
+    ends = np.empty(2 * total, dtype=np.int64)  # run starts, then run ends
+    a, b = ends[:total], ends[total:]
+    np.maximum(spans.start[entry], -w, out=a)
+    w += 1
+    np.minimum(spans.stop[entry], w, out=b)
+    np.maximum(b, a, out=b)
+    base = spans.row[entry]
+    base *= stride
+    base += np.repeat((beams.row[beam] - corner[0]) * stride + beams.col[beam] - corner[1], n)
     a += base
     b += base
-    v = np.repeat(value, n)
-    return np.concatenate([a, b]), np.concatenate([v, -v])
+    values = np.empty(2 * total)
+    values[:total] = np.repeat(value, n)
+    np.negative(values[:total], out=values[total:])
+    return ends, values
 
 
 def sum_beams(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
@@ -267,6 +274,8 @@ class BeamSums:
 
     def _update(self, base: _State, beams: Beams, gone: np.ndarray, new: np.ndarray,
                 corner: tuple[int, int], shape: tuple[int, int]) -> np.ndarray:
+        """The kept grid, less the readings gone, plus the new ones, on a grid that holds
+        both (what lies outside the new grid then cancels to exactly 0), cut to the new."""
         h, w = shape
         bh, bw = base.diff.shape[0], base.diff.shape[1] - 1
         r0, c0 = min(corner[0], base.corner[0]), min(corner[1], base.corner[1])
@@ -274,14 +283,22 @@ class BeamSums:
         c1 = max(corner[1] + w, base.corner[1] + bw)
         union = (r1 - r0, c1 - c0)
         stride = union[1] + 1
-        diff = np.zeros((union[0], stride))
-        br, bc = base.corner[0] - r0, base.corner[1] - c0
-        diff[br:br + bh, bc:bc + bw + 1] = base.diff
+        if (r0, c0) == base.corner and union == (bh, bw):
+            diff = base.diff.copy()
+        else:
+            diff = np.zeros((union[0], stride))
+            br, bc = base.corner[0] - r0, base.corner[1] - c0
+            diff[br:br + bh, bc:bc + bw + 1] = base.diff
         i_old, v_old = run_ends(self.spans, base.beams.take(gone), (r0, c0), stride)
         i_new, v_new = run_ends(self.spans, beams.take(new), (r0, c0), stride)
-        diff += np.bincount(np.concatenate([i_old, i_new]), np.concatenate([-v_old, v_new]),
-                            minlength=union[0] * stride).reshape(union[0], stride)
+        index = np.concatenate([i_old, i_new])
+        if index.size:
+            lo = int(index.min())
+            size = int(index.max()) + 1 - lo
+            diff.reshape(-1)[lo:lo + size] += np.bincount(
+                index - lo, np.concatenate([-v_old, v_new]), minlength=size)
         self.readings_drawn += len(gone) + len(new)
         nr, nc = corner[0] - r0, corner[1] - c0
-        # what lies outside the new grid has cancelled to exactly 0
+        if (nr, nc) == (0, 0) and union == shape:
+            return diff
         return diff[nr:nr + h, nc:nc + w + 1].copy()
