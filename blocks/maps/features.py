@@ -561,22 +561,33 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
             raise ValueError("a memo needs the sensors' ids")
         ids = np.asarray(ids, dtype=np.int64)
         memo.configure("predict", (float(cone_deg), float(max_range)))
-        c, s = np.cos(sensors[:, 2]), np.sin(sensors[:, 2])
-        out = np.full(len(sensors), np.inf)
+        reach = max_range + 1e-6  # farther than this from a segment's box: cannot see it
+        parts = []
         for f in features:
             key = memo.serial(f)[0]
             known = memo.get("predict", key)
-            ranges = np.empty(len(sensors))
+            ranges = np.full(len(sensors), np.inf)
             todo = np.ones(len(sensors), dtype=bool)
             if known is not None:
                 known_ids, known_ranges = known
                 at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
                 todo = known_ids[at] != ids
                 ranges[~todo] = known_ranges[at[~todo]]
-            i = np.flatnonzero(todo)
-            segment = np.array([*f.p0, *f.p1, 0.0])
-            dist = nearest_in_cone(sensors[i, 0], sensors[i, 1], c[i], s[i], segment, half)[0]
-            ranges[i] = np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf)
+            (x0, x1), (y0, y1) = sorted((f.p0[0], f.p1[0])), sorted((f.p0[1], f.p1[1]))
+            todo &= (sensors[:, 0] >= x0 - reach) & (sensors[:, 0] <= x1 + reach) \
+                & (sensors[:, 1] >= y0 - reach) & (sensors[:, 1] <= y1 + reach)
+            parts.append((key, ranges, np.flatnonzero(todo)))
+        # the new pairs of all features at once, element by element
+        i = np.concatenate([p[2] for p in parts])
+        segments = np.repeat(np.array([[*f.p0, *f.p1, 0.0] for f in features]),
+                             [len(p[2]) for p in parts], axis=0)
+        dist = nearest_in_cone(sensors[i, 0], sensors[i, 1], np.cos(sensors[i, 2]),
+                               np.sin(sensors[i, 2]), segments, half)[0]
+        found = np.split(np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf),
+                         np.cumsum([len(p[2]) for p in parts])[:-1])
+        out = np.full(len(sensors), np.inf)
+        for (key, ranges, todo), new in zip(parts, found):
+            ranges[todo] = new
             memo.store("predict", key, (ids, ranges))
             np.minimum(out, ranges, out=out)
         return out
