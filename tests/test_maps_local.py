@@ -9,7 +9,7 @@ import pytest
 
 from blocks.maps.cones import cone_spans, cone_tables, cone_window
 from blocks.maps.features import (FeatureMemo, _fit_line, _line_tests, extract_linear_features,
-                                  merge_features, sensor_poses_along)
+                                  merge_features, predict_ranges, sensor_poses_along)
 from blocks.maps.local import LocalMaps
 from blocks.maps.offline import OfflineMapParams, _draw_beams, beam_codes, build_offline_map
 from blocks.maps.sectors import BeamSums, Beams, beam_terms, exact_weights, sum_beams
@@ -245,3 +245,62 @@ def test_local_maps_take_scans_in_time_order_and_known_indices():
     with pytest.raises(ValueError, match="index"):
         maps.build(np.array([0, 1]))
     assert maps.window(0.0, (10.0, 0.0), 1.0).size == 0
+
+
+def test_cone_geometry_element_by_element_is_cone_ranges():
+    from sim2d.sonar import cone_ranges, nearest_in_cone
+    rng = np.random.default_rng(6)
+    sensors = np.column_stack([rng.uniform(0, 12, 200), rng.uniform(0, 3, 200),
+                               rng.uniform(-math.pi, math.pi, 200)])
+    half = math.radians(15)
+    for segment in CORRIDOR:  # paired with each sensor: as cone_ranges, one capsule at a time
+        want, _ = cone_ranges(sensors, segment[None], half, 4.0)
+        dist = nearest_in_cone(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
+                               np.sin(sensors[:, 2]), np.tile(segment, (200, 1)), half)[0]
+        got = np.where(dist <= 4.0, np.maximum(dist, 0.0), np.inf)
+        assert np.array_equal(got, want)
+        assert np.isfinite(want).any()
+
+
+def test_kept_predictions_are_the_predictions(corridor):
+    poses, ranges = corridor
+    echo = ranges < 3.95
+    memo = FeatureMemo()
+    for a, b in [(0, 150), (30, 200), (30, 260)]:
+        index = np.arange(a, b)
+        sensors = sensor_poses_along(poses[index], MOUNTS)
+        features = merge_features(extract_linear_features(sensors, ranges[index], echo[index]))
+        flat = sensors.reshape(-1, 3)
+        keys = (index[:, None] * 16 + np.arange(16)).ravel()
+        want = predict_ranges(flat, features, 30.0, 4.0)
+        assert np.array_equal(predict_ranges(flat, features, 30.0, 4.0, ids=keys, memo=memo),
+                              want)
+        assert np.isfinite(want).mean() > 0.5
+
+
+def test_the_quick_merge_test_agrees_or_defers():
+    rng = np.random.default_rng(7)
+    from blocks.maps.features import LinearFeature, _mergeable, _mergeable_quick
+
+    def feature(x0, y0, x1, y1):
+        d = np.array([x1 - x0, y1 - y0]) / math.hypot(x1 - x0, y1 - y0)
+        return LinearFeature(np.array([x0, y0]), np.array([x1, y1]), np.array([-d[1], d[0]]),
+                             np.zeros((0, 2)), 0.0)
+
+    def numbers(f):
+        return (*f.normal.tolist(), *f.p0.tolist(), *f.p1.tolist())
+
+    deferred = 0
+    for _ in range(2000):
+        x, y = rng.uniform(0, 10, 2)
+        a = feature(x, y, x + rng.uniform(0.5, 3), y + rng.normal(0, 0.05))
+        b = feature(*(a.p1 + rng.normal(0, 0.2, 2)), *(a.p1 + [rng.uniform(0.3, 2), 0]
+                                                       + rng.normal(0, 0.1, 2)))
+        quick = _mergeable_quick(numbers(a), numbers(b), math.cos(math.radians(6)), 0.1, 0.3)
+        if quick is None:
+            deferred += 1
+        else:
+            assert quick == _mergeable(a, b, math.radians(6), 0.1, 0.3)
+    edge = feature(0, 0, 1, 0), feature(1.3, 0, 2, 0)  # a gap of exactly max_gap
+    assert _mergeable_quick(numbers(edge[0]), numbers(edge[1]), 0.99, 0.1, 0.3) is None
+    assert deferred < 20
