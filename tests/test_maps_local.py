@@ -304,3 +304,24 @@ def test_the_quick_merge_test_agrees_or_defers():
     edge = feature(0, 0, 1, 0), feature(1.3, 0, 2, 0)  # a gap of exactly max_gap
     assert _mergeable_quick(numbers(edge[0]), numbers(edge[1]), 0.99, 0.1, 0.3) is None
     assert deferred < 20
+
+
+def test_readings_checks_at_once_are_the_checks_one_by_one(corridor):
+    from blocks.maps.features import _explained, _explains
+    poses, ranges = corridor
+    sensors = sensor_poses_along(poses[:150], MOUNTS)
+    features = extract_linear_features(sensors, ranges[:150], ranges[:150] < 3.95)
+    rng = np.random.default_rng(8)
+    checks = []
+    for i, f in enumerate(features[:12]):
+        rows, j = rng.choice(150, 30, replace=False), int(rng.integers(16))
+        checks.append((i, f, sensors[rows, j], ranges[rows, j]))
+    want = [_explains(f, s, r, 30.0, 0.08) for _, f, s, r in checks]
+    assert _explained(checks, 30.0, 0.08) == want
+    assert any(want) and not all(want)
+
+
+def test_line_tests_need_three_echoes():
+    with pytest.raises(ValueError, match="recent"):
+        extract_linear_features(np.zeros((2, 1, 3)), np.ones((2, 1)), np.ones((2, 1), bool),
+                                recent=2)

@@ -135,7 +135,7 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
         runs are corners, door jambs and the robot turning on the spot.
     recent
         A new echo is tested against the line through the run's last
-        ``recent`` echoes.
+        ``recent`` echoes (at least 3).
     ids, memo
         With a :class:`FeatureMemo`, the work done on the same scans in an
         earlier call is looked up instead of repeated (same result): ``ids``
@@ -153,10 +153,11 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
         memo.configure("extract", (float(cone_deg), line_tol, max_gap, min_points, min_length,
                                    recent), new_call=True)
         ids = np.ascontiguousarray(ids, dtype=np.int64)
+    if recent < 3:
+        raise ValueError(f"recent must be at least 3 echoes, got {recent}")
     half = math.radians(cone_deg) / 2
     axis = sensors[..., :2] + ranges[..., None] * np.stack(
         [np.cos(sensors[..., 2]), np.sin(sensors[..., 2])], axis=-1)
-    features: list[LinearFeature] = []
 
     def candidate(j: int, run: np.ndarray) -> LinearFeature | None:
         """The feature of a run, if it is long and straight enough (see :func:`_explains`)."""
