@@ -147,20 +147,19 @@ def cone_spans(resolution: float, cone_deg: float, reach: int) -> ConeSpans:
     tables = cone_tables(resolution, cone_deg, reach)
     outside = _outside(reach)
     first = np.zeros((360, 2 * reach + 2), dtype=np.int64)
-    row, start, stop = [], [], []
+    rows, starts, stops = [], [], []
+    count = 0
     for k, (dr, dc, codes) in enumerate(tables):
-        inside = codes < outside
-        for dy in range(-reach, reach + 1):
-            first[k, dy + reach] = len(row)
-            r = dy - dr
-            if not 0 <= r < codes.shape[0]:
-                continue
-            edges = np.flatnonzero(np.diff(np.r_[0, inside[r].astype(np.int8), 0]))
-            for a, b in zip(edges[::2].tolist(), edges[1::2].tolist()):
-                row.append(dy)
-                start.append(dc + a)
-                stop.append(dc + b)
-        first[k, 2 * reach + 1] = len(row)
+        inside = np.pad(codes < outside, ((0, 0), (1, 1))).astype(np.int8)
+        step = np.diff(inside, axis=1)  # +1 where a run starts, -1 one past its end
+        r_on, c_on = np.nonzero(step == 1)  # row by row, left to right
+        _, c_off = np.nonzero(step == -1)
+        rows.append(r_on + dr)
+        starts.append(c_on + dc)
+        stops.append(c_off + dc)
+        first[k] = count + np.searchsorted(r_on + dr, np.arange(-reach, reach + 2))
+        count += len(r_on)
+    row, start, stop = np.concatenate(rows), np.concatenate(starts), np.concatenate(stops)
     _, _, rho = _offsets(reach)
     quarter = np.round(rho * 2).astype(np.int64)[reach:, reach:]  # [|dy|, |dx|], as the tables
     if (np.diff(quarter, axis=1) < 0).any():
@@ -170,6 +169,5 @@ def cone_spans(resolution: float, cone_deg: float, reach: int) -> ConeSpans:
     half_width = below.sum(axis=2) - 1
     rows = np.arange(reach + 1)
     rows_below = np.where(half_width >= 0, rows[None, :], -1).max(axis=1)
-    row = np.array(row, dtype=np.int64)
-    return ConeSpans(first, row, np.array(start, dtype=np.int64), np.array(stop, dtype=np.int64),
-                     np.abs(row), half_width, rows_below, limit, reach)
+    row, start, stop = row.astype(np.int64), start.astype(np.int64), stop.astype(np.int64)
+    return ConeSpans(first, row, start, stop, np.abs(row), half_width, rows_below, limit, reach)
