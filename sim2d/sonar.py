@@ -35,6 +35,52 @@ class SonarSpec:
     rate_hz: float = 10.0  # readings per second
 
 
+def nearest_in_cone(ox: np.ndarray, oy: np.ndarray, c: np.ndarray, s: np.ndarray,
+                    segments: np.ndarray, half_angle: float) -> tuple[np.ndarray, ...]:
+    """Distance from sensors at (``ox``, ``oy``) heading (``c``, ``s``) = (cos, sin) to the
+    capsules ``segments[..., :5]`` inside their cones, ``inf`` where none is; element by
+    element, broadcasting sensors against capsules (as :func:`cone_ranges` does, (N, 1)
+    against (1, S)) or pairing them (all (P,)).
+
+    Returns the distance and what :func:`cone_ranges` goes on with: the clip of each
+    segment to the wedge ``t0..t1``, the foot of the perpendicular ``t_foot``, the
+    segment's direction ``dx, dy`` in the sensor frame, the nearest point ``cx, cy``
+    and the squared length.
+    """
+    # Segment end points in each sensor's frame: (N, S)
+    ax, ay = segments[..., 0] - ox, segments[..., 1] - oy
+    bx, by = segments[..., 2] - ox, segments[..., 3] - oy
+    px, py = c * ax + s * ay, -s * ax + c * ay
+    qx, qy = c * bx + s * by, -s * bx + c * by
+    radius = segments[..., 4]
+    dx, dy = qx - px, qy - py
+    # Capsule surfaces are `radius` closer: widen the wedge test by the radius, so a
+    # capsule whose surface pokes into the cone counts.
+    sa, ca = math.sin(half_angle), math.cos(half_angle)
+    t0 = np.zeros_like(px)
+    t1 = np.ones_like(px)
+    for nx, ny in ((sa, -ca), (sa, ca)):  # inside the wedge: nx*x + ny*y >= -radius
+        f0 = nx * px + ny * py + radius
+        df = nx * dx + ny * dy
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_cross = -f0 / df
+        entering = df > _EPS
+        leaving = df < -_EPS
+        t0 = np.where(entering, np.maximum(t0, t_cross), t0)
+        t1 = np.where(leaving, np.minimum(t1, t_cross), t1)
+        parallel_out = (np.abs(df) <= _EPS) & (f0 < 0)
+        t1 = np.where(parallel_out, -1.0, t1)
+    valid = t0 <= t1
+    length2 = dx * dx + dy * dy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_foot = np.where(length2 > _EPS, -(px * dx + py * dy) / length2, 0.0)
+    t_near = np.clip(t_foot, t0, t1)
+    cx, cy = px + t_near * dx, py + t_near * dy
+    dist = np.hypot(cx, cy) - radius
+    dist = np.where(valid & (cx > -radius), dist, np.inf)
+    return dist, t0, t1, t_foot, dx, dy, cx, cy, length2
+
+
 def cone_ranges(sensors: np.ndarray, segments: np.ndarray, half_angle: float,
                 max_range: float) -> tuple[np.ndarray, np.ndarray]:
     """Nearest surface inside each sensor's cone, and the incidence angle there.
@@ -63,38 +109,8 @@ def cone_ranges(sensors: np.ndarray, segments: np.ndarray, half_angle: float,
     if n == 0 or len(segments) == 0:
         return np.full(n, np.inf), np.full(n, np.nan)
     ox, oy, th = sensors[:, 0:1], sensors[:, 1:2], sensors[:, 2:3]
-    c, s = np.cos(th), np.sin(th)
-    # Segment end points in each sensor's frame: (N, S)
-    ax, ay = segments[None, :, 0] - ox, segments[None, :, 1] - oy
-    bx, by = segments[None, :, 2] - ox, segments[None, :, 3] - oy
-    px, py = c * ax + s * ay, -s * ax + c * ay
-    qx, qy = c * bx + s * by, -s * bx + c * by
-    radius = segments[None, :, 4]
-    dx, dy = qx - px, qy - py
-    # Capsule surfaces are `radius` closer: widen the wedge test by the radius, so a
-    # capsule whose surface pokes into the cone counts.
-    sa, ca = math.sin(half_angle), math.cos(half_angle)
-    t0 = np.zeros_like(px)
-    t1 = np.ones_like(px)
-    for nx, ny in ((sa, -ca), (sa, ca)):  # inside the wedge: nx*x + ny*y >= -radius
-        f0 = nx * px + ny * py + radius
-        df = nx * dx + ny * dy
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_cross = -f0 / df
-        entering = df > _EPS
-        leaving = df < -_EPS
-        t0 = np.where(entering, np.maximum(t0, t_cross), t0)
-        t1 = np.where(leaving, np.minimum(t1, t_cross), t1)
-        parallel_out = (np.abs(df) <= _EPS) & (f0 < 0)
-        t1 = np.where(parallel_out, -1.0, t1)
-    valid = t0 <= t1
-    length2 = dx * dx + dy * dy
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_foot = np.where(length2 > _EPS, -(px * dx + py * dy) / length2, 0.0)
-    t_near = np.clip(t_foot, t0, t1)
-    cx, cy = px + t_near * dx, py + t_near * dy
-    dist = np.hypot(cx, cy) - radius
-    dist = np.where(valid & (cx > -radius), dist, np.inf)
+    dist, t0, t1, t_foot, dx, dy, cx, cy, length2 = nearest_in_cone(
+        ox, oy, np.cos(th), np.sin(th), segments[None, :, :], half_angle)
     best = np.argmin(dist, axis=1)
     rows = np.arange(n)
     ranges = dist[rows, best]

@@ -4,15 +4,33 @@ Drawing a 30-degree cone on a grid for every reading is the inner loop of the
 offline map and of sonar visibility; with the cone's cells and their ranges
 precomputed per degree, a reading becomes a slice and a comparison, as the
 paper precomputes its beam matrices.
+
+The same cells also come row by row (:func:`cone_spans`): a cone cut off at a
+range is, on every grid row, one run of cells (or a few, where a cone edge
+runs along the row), so a reading can be added as a handful of run ends per
+row instead of a value per cell (:mod:`blocks.maps.sectors`).
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["cone_tables", "cone_window"]
+__all__ = ["ConeSpans", "cone_spans", "cone_tables", "cone_window"]
+
+
+def _offsets(reach: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Column and row offsets of a (2 reach + 1)-square around the apex, and their distance."""
+    offsets = np.arange(-reach, reach + 1, dtype=np.float64)
+    dx, dy = np.meshgrid(offsets, offsets)
+    return dx, dy, np.hypot(dx, dy)
+
+
+def _outside(reach: int) -> int:
+    """The code of the cells outside the cone: beyond every reading."""
+    return 4 * reach + 8
 
 
 @lru_cache(maxsize=4)
@@ -37,12 +55,10 @@ def cone_tables(resolution: float, cone_deg: float, reach: int
         ``(apex row + row offset + r, apex column + column offset + c)``;
         cells outside the cone hold a code beyond every reading.
     """
-    offsets = np.arange(-reach, reach + 1, dtype=np.float64)
-    dx, dy = np.meshgrid(offsets, offsets)
-    rho = np.hypot(dx, dy)
+    dx, dy, rho = _offsets(reach)
     codes_all = np.round(rho * 2).astype(np.uint16)
     half = math.radians(cone_deg) / 2
-    outside = np.uint16(4 * reach + 8)
+    outside = np.uint16(_outside(reach))
     tables = []
     for k in range(360):
         heading = math.radians(k)
@@ -71,3 +87,87 @@ def cone_window(table: tuple[int, int, np.ndarray], row: int, col: int, radius: 
         return None
     return (slice(row + dr + r0, row + dr + r1), slice(col + dc + c0, col + dc + c1),
             codes[r0:r1, c0:c1])
+
+
+@dataclass(frozen=True)
+class ConeSpans:
+    """The cells of :func:`cone_tables` as runs along grid rows, and the disks that cut them.
+
+    Attributes
+    ----------
+    first
+        (360, 2 reach + 2) int: the runs of heading ``k`` on rows ``dy`` with
+        ``y0 <= dy <= y1`` are ``first[k, y0 + reach]`` to
+        ``first[k, y1 + reach + 1]`` (exclusive) in the arrays below.
+    row, start, stop
+        (R,) int: each run's row offset and its columns ``start <= dx < stop``
+        (offsets from the apex).
+    abs_row
+        (R,) int: ``|row|``.
+    half_width
+        (2 reach + 3, reach + 1) int: ``half_width[t, |dy|]`` is the largest
+        ``|dx|`` whose range code is below ``t`` on row ``dy`` (-1: none).
+    rows_below
+        (2 reach + 3,) int: the largest ``|dy|`` with a code below ``t`` (-1: none).
+    limit
+        The largest useful code bound: every cell of a cone has a code below it.
+    reach
+        The cone radius (cells) of the tables.
+    """
+
+    first: np.ndarray
+    row: np.ndarray
+    start: np.ndarray
+    stop: np.ndarray
+    abs_row: np.ndarray
+    half_width: np.ndarray
+    rows_below: np.ndarray
+    limit: int
+    reach: int
+
+
+@lru_cache(maxsize=4)
+def cone_spans(resolution: float, cone_deg: float, reach: int) -> ConeSpans:
+    """The cones of :func:`cone_tables` as row runs: ``{code < t}`` of heading ``k`` on row
+    ``dy`` is each run of that row cut to ``|dx| <= half_width[t, |dy|]``.
+
+    That holds because a cell's code only grows with ``|dx|`` along a row, which
+    is checked here.
+
+    Examples
+    --------
+    >>> spans = cone_spans(0.1, 30.0, 3)
+    >>> k = 0  # heading +x: the apex, then a widening wedge to the right
+    >>> lo, hi = spans.first[k, 0 + 3], spans.first[k, 0 + 3 + 1]
+    >>> [(int(spans.start[i]), int(spans.stop[i])) for i in range(lo, hi)]
+    [(0, 4)]
+    >>> int(spans.half_width[3, 0])  # codes 0, 2 (below 3) on the apex row: |dx| <= 1
+    1
+    """
+    tables = cone_tables(resolution, cone_deg, reach)
+    outside = _outside(reach)
+    first = np.zeros((360, 2 * reach + 2), dtype=np.int64)
+    rows, starts, stops = [], [], []
+    count = 0
+    for k, (dr, dc, codes) in enumerate(tables):
+        inside = np.pad(codes < outside, ((0, 0), (1, 1))).astype(np.int8)
+        step = np.diff(inside, axis=1)  # +1 where a run starts, -1 one past its end
+        r_on, c_on = np.nonzero(step == 1)  # row by row, left to right
+        _, c_off = np.nonzero(step == -1)
+        rows.append(r_on + dr)
+        starts.append(c_on + dc)
+        stops.append(c_off + dc)
+        first[k] = count + np.searchsorted(r_on + dr, np.arange(-reach, reach + 2))
+        count += len(r_on)
+    row, start, stop = np.concatenate(rows), np.concatenate(starts), np.concatenate(stops)
+    _, _, rho = _offsets(reach)
+    quarter = np.round(rho * 2).astype(np.int64)[reach:, reach:]  # [|dy|, |dx|], as the tables
+    if (np.diff(quarter, axis=1) < 0).any():
+        raise AssertionError("range codes must not fall along a row")  # never, for hypot
+    limit = 2 * reach + 2  # codes inside a cone are at most 2 reach
+    below = quarter[None, :, :] < np.arange(limit + 1)[:, None, None]
+    half_width = below.sum(axis=2) - 1
+    rows = np.arange(reach + 1)
+    rows_below = np.where(half_width >= 0, rows[None, :], -1).max(axis=1)
+    row, start, stop = row.astype(np.int64), start.astype(np.int64), stop.astype(np.int64)
+    return ConeSpans(first, row, start, stop, np.abs(row), half_width, rows_below, limit, reach)

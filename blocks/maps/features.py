@@ -22,11 +22,12 @@ The paper's offline map generator (section 6) builds on this; see
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LinearFeature", "extract_linear_features", "merge_features",
+__all__ = ["FeatureMemo", "LinearFeature", "extract_linear_features", "merge_features",
            "predict_ranges", "sensor_poses_along"]
 
 
@@ -112,7 +113,9 @@ def _feature_from(points: np.ndarray, sensors: np.ndarray, ranges: np.ndarray,
 def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
                             cone_deg: float = 30.0, *, line_tol: float = 0.04,
                             max_gap: float = 0.3, min_points: int = 6,
-                            min_length: float = 0.3, recent: int = 20) -> list[LinearFeature]:
+                            min_length: float = 0.3, recent: int = 20,
+                            ids: np.ndarray | None = None,
+                            memo: FeatureMemo | None = None) -> list[LinearFeature]:
     """Runs of collinear echoes, sensor by sensor, as line features.
 
     Parameters
@@ -132,46 +135,271 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
         runs are corners, door jambs and the robot turning on the spot.
     recent
         A new echo is tested against the line through the run's last
-        ``recent`` echoes.
+        ``recent`` echoes (at least 3).
+    ids, memo
+        With a :class:`FeatureMemo`, the work done on the same scans in an
+        earlier call is looked up instead of repeated (same result): ``ids``
+        (T,) names each scan, and a scan's name must always come with the
+        same pose and readings.
 
     Returns
     -------
     list of LinearFeature
         One per run, not yet merged across sensors (see :func:`merge_features`).
     """
+    if memo is not None:
+        if ids is None:
+            raise ValueError("a memo needs the scans' ids")
+        memo.configure("extract", (float(cone_deg), line_tol, max_gap, min_points, min_length,
+                                   recent), new_call=True)
+        ids = np.ascontiguousarray(ids, dtype=np.int64)
+    if recent < 3:
+        raise ValueError(f"recent must be at least 3 echoes, got {recent}")
     half = math.radians(cone_deg) / 2
     axis = sensors[..., :2] + ranges[..., None] * np.stack(
         [np.cos(sensors[..., 2]), np.sin(sensors[..., 2])], axis=-1)
-    features: list[LinearFeature] = []
+
+    def candidate(j: int, run: np.ndarray) -> LinearFeature | None:
+        """The feature of a run, if it is long and straight enough (see :func:`_explains`)."""
+        if len(run) < min_points:
+            return None
+        pts = axis[run, j]
+        if np.hypot(*(pts[-1] - pts[0])) < min_length:
+            return None
+        feature = _feature_from(pts, sensors[run, j], ranges[run, j], half)
+        if feature.length >= min_length and feature.residual <= line_tol:
+            return feature
+        return None
+
+    def breaks_line(j: int, tail: np.ndarray, t: int) -> bool:
+        # the recent part only: odometry drift bends long walls
+        centre, direction = _fit_line(axis[tail, j])
+        p = axis[t, j]
+        return bool(abs(direction[0] * (p[1] - centre[1]) - direction[1] * (p[0] - centre[0]))
+                    > line_tol)
+
+    def first_break(j: int, rows: np.ndarray, status: np.ndarray, start: int) -> int | None:
+        """The first echo after ``start`` (positions in ``rows``) that leaves the line."""
+        end = len(rows)
+        short = status[start, 3:min(recent, end - start)]  # echo start + L, tail from start
+        long = status[start:max(start, end - recent), recent]  # echo k, tail k - recent..k
+        for i in np.flatnonzero(np.concatenate([short, long])).tolist():
+            k = start + 3 + i if i < len(short) else start + recent + i - len(short)
+            if status[k - min(recent, k - start), min(recent, k - start)] == _BREAKS or \
+                    breaks_line(j, rows[max(start, k - recent):k], rows[k]):
+                return k
+        return None
+
+    def segment(j: int, rows: np.ndarray, status: np.ndarray) -> list[np.ndarray]:
+        # A run of echoes no farther apart than max_gap: runs within it end where the
+        # next echo leaves the line (the last echo then starts the next run).
+        runs = []
+        start = 0
+        while True:
+            k = first_break(j, rows, status, start)
+            runs.append(rows[start:] if k is None else rows[start:k])
+            if k is None:
+                return runs
+            start = k - 1
+
+    def features_of(runs: list[tuple[int, np.ndarray]]) -> list[LinearFeature | None]:
+        """Each run's feature, or None; the readings check of all runs at once."""
+        out: list[LinearFeature | None] = [None] * len(runs)
+        checks = []
+        for i, (j, run) in enumerate(runs):
+            key = None if memo is None else (j, ids[run].tobytes())
+            found = None if key is None else memo.get("run", key)
+            if found is not None:
+                out[i] = found[0]
+                continue
+            feature = candidate(j, run)
+            if feature is not None:
+                checks.append((i, feature, sensors[run, j], ranges[run, j]))
+            elif key is not None:
+                memo.store("run", key, (None,))
+        if checks:
+            fine = _explained(checks, cone_deg, 2 * line_tol)
+            for (i, feature, _, _), ok in zip(checks, fine):
+                out[i] = feature if ok else None
+                if memo is not None:
+                    j, run = runs[i]
+                    memo.store("run", (j, ids[run].tobytes()), (out[i],))
+        return out
+
+    # The segments (echoes no farther apart than max_gap) of every sensor, in order; those
+    # not kept in the memo are worked out together.
+    slots: list = []
+    todo: list[tuple[int, int, np.ndarray, tuple | None]] = []
     for j in range(sensors.shape[1]):
         rows = np.flatnonzero(echo[:, j])
-        run: list[int] = []
+        if rows.size == 0:
+            continue
+        pts = axis[rows, j]
+        step = pts[1:] - pts[:-1]
+        gaps = np.flatnonzero(np.hypot(step[:, 0], step[:, 1]) > max_gap) + 1
+        for part in np.split(rows, gaps):
+            key = None if memo is None else (j, ids[part].tobytes())
+            found = None if key is None else memo.get("segment", key)
+            if found is None:
+                todo.append((len(slots), j, part, key))
+            slots.append(found)
+    if todo:
+        flat = np.concatenate([axis[part, j] for _, j, part, _ in todo])
+        status = _line_tests(flat, recent, line_tol)
+        at = 0
+        runs: list[tuple[int, np.ndarray]] = []
+        owner: list[int] = []
+        for n, (_, j, part, _) in enumerate(todo):
+            for run in segment(j, part, status[at:at + len(part)]):
+                runs.append((j, run))
+                owner.append(n)
+            at += len(part)
+        mine: list[list[LinearFeature]] = [[] for _ in todo]
+        for f, n in zip(features_of(runs), owner):
+            if f is not None:
+                mine[n].append(f)
+        for (slot, _, _, key), found in zip(todo, mine):
+            slots[slot] = found
+            if key is not None:
+                memo.store("segment", key, found)
+    return [f for found in slots for f in found]
 
-        def close(run: list[int]) -> None:
-            if len(run) < min_points:
-                return
-            pts = axis[run, j]
-            if np.hypot(*(pts[-1] - pts[0])) < min_length:
-                return
-            feature = _feature_from(pts, sensors[run, j], ranges[run, j], half)
-            if (feature.length >= min_length and feature.residual <= line_tol
-                    and _explains(feature, sensors[run, j], ranges[run, j], cone_deg,
-                                  2 * line_tol)):
-                features.append(feature)
 
-        for t in rows:
-            p = axis[t, j]
-            if run and np.hypot(*(p - axis[run[-1], j])) > max_gap:
-                close(run)
-                run = []
-            if len(run) >= 3:  # the recent part only: odometry drift bends long walls
-                centre, direction = _fit_line(axis[run[-recent:], j])
-                if abs(direction[0] * (p[1] - centre[1]) - direction[1] * (p[0] - centre[0])) > line_tol:
-                    close(run)
-                    run = run[-1:] if np.hypot(*(p - axis[run[-1], j])) <= max_gap else []
-            run.append(int(t))
-        close(run)
-    return features
+_KEEPS, _BREAKS, _UNSURE = 0, 1, 2
+
+
+def _line_tests(pts: np.ndarray, recent: int, line_tol: float) -> np.ndarray:
+    """Does echo ``s + L`` leave the line through echoes ``s .. s + L - 1``?
+
+    For every start ``s`` and tail length ``3 <= L <= recent``: ``_KEEPS``,
+    ``_BREAKS`` or ``_UNSURE`` (n, recent + 1) int8.  The lines are fitted
+    from running sums, which round differently from :func:`_fit_line`; a
+    test is only decided here when its distance from ``line_tol`` exceeds a
+    bound on both roundings, else it is ``_UNSURE`` and the caller fits
+    exactly, so decisions are those of :func:`_fit_line`.
+    """
+    n = len(pts)
+    status = np.zeros((n, recent + 1), dtype=np.int8)
+    if n < 4:
+        return status
+    offsets = np.arange(recent + 1)
+    idx = np.minimum(np.arange(n)[:, None] + offsets[None, :], n - 1)
+    ref = pts[:, None, :]
+    u = pts[idx] - ref  # (n, recent + 1, 2), relative to the tail's first echo
+    q = u[:, 1:, :]  # the echo tested against a tail of L = 1..recent echoes
+    head = u[:, :-1, :]
+    count = offsets[1:].astype(np.float64)
+    sx, sy = np.cumsum(head[..., 0], axis=1), np.cumsum(head[..., 1], axis=1)
+    sxx = np.cumsum(head[..., 0] ** 2, axis=1)
+    syy = np.cumsum(head[..., 1] ** 2, axis=1)
+    sxy = np.cumsum(head[..., 0] * head[..., 1], axis=1)
+    cx, cy = sx / count, sy / count
+    vxx, vyy, vxy = sxx - count * cx * cx, syy - count * cy * cy, sxy - count * cx * cy
+    angle = 0.5 * np.arctan2(2 * vxy, vxx - vyy)
+    ex, ey = q[..., 0] - cx, q[..., 1] - cy
+    cross = np.cos(angle) * ey - np.sin(angle) * ex
+    # Bounds: sums of <= recent squares round by far less than 1e-11 of their size; an
+    # error e in the scatter turns the line by at most 2 e / |(vxx - vyy, 2 vxy)|.
+    scatter = np.hypot(vxx - vyy, 2 * vxy)
+    size = sxx + syy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        turn = np.where(scatter > 0, 2e-11 * size / scatter, np.inf)
+        slack = np.hypot(ex, ey) * turn + 1e-11 * (1.0 + np.abs(ref).sum(axis=2) + np.sqrt(size))
+        decided = np.abs(np.abs(cross) - line_tol) > slack  # NaN slack (0 * inf): unsure
+    out = np.where(decided, np.where(np.abs(cross) > line_tol, _BREAKS, _KEEPS), _UNSURE)
+    status[:, 1:] = out
+    status[:, :3] = _KEEPS
+    status[np.arange(n)[:, None] + offsets[None, :] >= n] = _KEEPS  # past the last echo
+    return status
+
+
+class FeatureMemo:
+    """Work of :func:`extract_linear_features` and :func:`merge_features` kept between calls.
+
+    When the scans of one call recur in the next (a sliding window), most
+    runs, line tests and merges are the same; this keeps them, keyed by the
+    scans' ids and by the features' identities, and the results are those of
+    a call without the memo.  What goes unused for ``max_age`` extractions is
+    dropped, so the memo stays the size of a few windows.
+    """
+
+    def __init__(self, max_age: int = 4) -> None:
+        self.max_age = max_age
+        self._configs: dict[str, tuple] = {}
+        self._new: dict = {}
+        self._old: dict = {}
+        self._calls = 0
+        self._serials: dict[int, tuple[int, weakref.ref, float]] = {}
+        self._next_serial = 0
+        self.hits = 0
+        self.misses = 0
+
+    def configure(self, name: str, config: tuple, new_call: bool = False) -> None:
+        """Forget everything when ``name``'s parameters change; age entries on a new call."""
+        if self._configs.get(name) != config:
+            self._configs[name] = config
+            self._new, self._old = {}, {}
+        if new_call:
+            self._calls += 1
+            if self._calls % self.max_age == 0:  # what was not used since the last turn goes
+                self._old, self._new = self._new, {}
+                self._serials = {k: e for k, e in self._serials.items() if e[1]() is not None}
+
+    def get(self, kind: str, key: tuple):
+        """The value kept under ``key``, or None."""
+        found = self._new.get((kind, key))
+        if found is None:
+            found = self._old.get((kind, key))
+            if found is None:
+                self.misses += 1
+                return None
+            self._new[(kind, key)] = found
+        self.hits += 1
+        return found[0]
+
+    def store(self, kind: str, key: tuple, value) -> None:
+        self._new[(kind, key)] = (value,)
+
+    def lookup(self, kind: str, key: tuple, compute, *args):
+        """The value kept under ``key``, else ``compute(*args)`` (then kept)."""
+        found = self._new.get((kind, key))
+        if found is None:
+            found = self._old.get((kind, key))
+            if found is None:
+                self.misses += 1
+                found = (compute(*args),)
+            else:
+                self.hits += 1
+            self._new[(kind, key)] = found
+        else:
+            self.hits += 1
+        return found[0]
+
+    def serial(self, feature: LinearFeature) -> tuple[int, float]:
+        """A number naming ``feature`` for as long as it lives, and its length."""
+        entry = self._serials.get(id(feature))
+        if entry is None or entry[1]() is not feature:
+            entry = (self._next_serial, weakref.ref(feature), feature.length)
+            self._next_serial += 1
+            self._serials[id(feature)] = entry
+        return entry[0], entry[2]
+
+
+def _explained(checks: list[tuple[int, LinearFeature, np.ndarray, np.ndarray]],
+               cone_deg: float, tol: float, share: float = 0.8) -> list[bool]:
+    """:func:`_explains` for many (index, feature, sensors, ranges) at once (same answers:
+    the cone geometry is worked out element by element either way)."""
+    from sim2d.sonar import nearest_in_cone
+    sizes = np.array([len(c[2]) for c in checks])
+    sensors = np.concatenate([c[2] for c in checks])
+    ranges = np.concatenate([c[3] for c in checks])
+    segments = np.repeat(np.array([[*c[1].p0, *c[1].p1, 0.0] for c in checks]), sizes, axis=0)
+    dist = nearest_in_cone(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
+                           np.sin(sensors[:, 2]), segments, math.radians(cone_deg) / 2)[0]
+    predicted = np.where(np.isfinite(dist), np.maximum(dist, 0.0), np.inf)
+    agree = np.add.reduceat((np.abs(predicted - ranges) <= tol).astype(np.float64),
+                            np.cumsum(sizes) - sizes)
+    return [bool(a / n >= share) for a, n in zip(agree.tolist(), sizes.tolist())]
 
 
 def _explains(feature: LinearFeature, sensors: np.ndarray, ranges: np.ndarray,
@@ -206,6 +434,33 @@ def _mergeable(a: LinearFeature, b: LinearFeature, angle_tol: float, offset_tol:
     return gap_along(a, b) <= max_gap
 
 
+def _mergeable_quick(a: tuple, b: tuple, cos_tol: float, offset_tol: float,
+                     max_gap: float, slack: float = 1e-9) -> bool | None:
+    """:func:`_mergeable` in plain floats, from (nx, ny, x0, y0, x1, y1, ...) tuples; None
+    when a test lands within ``slack`` of its bound, where the two roundings (a few
+    units in the last place of metres) could disagree."""
+    anx, any_, ax0, ay0, ax1, ay1 = a[:6]
+    bnx, bny, bx0, by0, bx1, by1 = b[:6]
+    dot = anx * bnx + any_ * bny
+    if abs(dot - cos_tol) <= slack:
+        return None
+    if dot < cos_tol:
+        return False
+    o0 = abs((bx0 - ax0) * anx + (by0 - ay0) * any_)
+    o1 = abs((bx1 - ax0) * anx + (by1 - ay0) * any_)
+    if abs(o0 - offset_tol) <= slack or abs(o1 - offset_tol) <= slack:
+        return None
+    if max(o0, o1) > offset_tol:
+        return False
+    dx, dy = any_, -anx  # along a's line, as gap_along
+    a0, a1 = sorted((0.0, (ax1 - ax0) * dx + (ay1 - ay0) * dy))
+    b0, b1 = sorted(((bx0 - ax0) * dx + (by0 - ay0) * dy, (bx1 - ax0) * dx + (by1 - ay0) * dy))
+    gap = max(a0, b0) - min(a1, b1)
+    if abs(gap - max_gap) <= slack:
+        return None
+    return gap <= max_gap
+
+
 def moved(f: LinearFeature, rotation: np.ndarray, pivot: np.ndarray,
           shift: np.ndarray) -> LinearFeature:
     """The feature after the rigid motion x -> pivot + rotation (x - pivot) + shift."""
@@ -228,7 +483,8 @@ def _refit(points: np.ndarray, normal_hint: np.ndarray) -> LinearFeature:
 
 
 def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
-                   offset_tol: float = 0.1, max_gap: float = 0.3) -> list[LinearFeature]:
+                   offset_tol: float = 0.1, max_gap: float = 0.3,
+                   memo: FeatureMemo | None = None) -> list[LinearFeature]:
     """Merge features that are the same wall seen by several sensors or at several times.
 
     Two features merge when they face the same way within ``angle_tol_deg``,
@@ -236,41 +492,108 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
     they overlap or leave a gap of at most ``max_gap`` (m) along it.  The
     merged feature is refitted to the union of the echoes, so support adds up.
     Features are merged longest first, which keeps the result deterministic.
+    With a :class:`FeatureMemo`, merges of the same two features made in an
+    earlier call are looked up (same result).
     """
-    pool = sorted(features, key=lambda f: (-f.support, -f.length))
     angle_tol = math.radians(angle_tol_deg)
-    merged = True
-    while merged:
-        merged = False
+    cos_tol = math.cos(angle_tol)
+    if memo is not None:
+        memo.configure("merge", (angle_tol_deg, offset_tol, max_gap))
+    known: dict[int, tuple] = {}  # per feature met (kept alive here): its numbers as floats
+
+    def numbers(f: LinearFeature) -> tuple:
+        entry = known.get(id(f))
+        if entry is None:
+            serial, length = memo.serial(f) if memo is not None else (-1, f.length)
+            entry = known[id(f)] = (*f.normal.tolist(), *f.p0.tolist(), *f.p1.tolist(),
+                                    length, serial, f)
+        return entry
+
+    def order(f: LinearFeature) -> tuple[int, float]:
+        return -f.support, -numbers(f)[6]
+
+    def mergeable(g: LinearFeature, f: LinearFeature) -> bool:
+        sure = _mergeable_quick(numbers(g), numbers(f), cos_tol, offset_tol, max_gap)
+        return _mergeable(g, f, angle_tol, offset_tol, max_gap) if sure is None else sure
+
+    def merged(g: LinearFeature, f: LinearFeature) -> LinearFeature:
+        if memo is None:
+            return _refit(np.vstack([g.points, f.points]), g.normal)
+        return memo.lookup("merged", (numbers(g)[7], numbers(f)[7]),
+                           lambda: _refit(np.vstack([g.points, f.points]), g.normal))
+
+    pool = sorted(features, key=order)
+    merged_any = True
+    while merged_any:
+        merged_any = False
         out: list[LinearFeature] = []
         for f in pool:
             for i, g in enumerate(out):
-                if _mergeable(g, f, angle_tol, offset_tol, max_gap):
-                    out[i] = _refit(np.vstack([g.points, f.points]), g.normal)
-                    merged = True
+                if mergeable(g, f):
+                    out[i] = merged(g, f)
+                    merged_any = True
                     break
             else:
                 out.append(f)
-        pool = sorted(out, key=lambda f: (-f.support, -f.length))
+        pool = sorted(out, key=order)
     return pool
 
 
 def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg: float,
-                   max_range: float, chunk: int = 4096) -> np.ndarray:
+                   max_range: float, chunk: int = 4096, *, ids: np.ndarray | None = None,
+                   memo: FeatureMemo | None = None) -> np.ndarray:
     """The range at which each sensor's cone first meets a feature (``inf`` if none).
 
     ``sensors`` is (M, 3).  Uses the simulator's exact cone geometry
     (:func:`sim2d.sonar.cone_ranges`), so a prediction is what a sonar would
-    read if the features were the only walls.
+    read if the features were the only walls.  With a :class:`FeatureMemo`
+    and ``ids`` (M,) naming the sensor poses, each feature's ranges for poses
+    it was met with in the last call are looked up (same result: the
+    geometry is worked out element by element, the nearest taken exactly).
     """
-    from sim2d.sonar import cone_ranges
+    from sim2d.sonar import cone_ranges, nearest_in_cone
 
     sensors = np.asarray(sensors, dtype=np.float64).reshape(-1, 3)
     if not features:
         return np.full(len(sensors), np.inf)
+    half = math.radians(cone_deg) / 2
+    if memo is not None:
+        if ids is None:
+            raise ValueError("a memo needs the sensors' ids")
+        ids = np.asarray(ids, dtype=np.int64)
+        memo.configure("predict", (float(cone_deg), float(max_range)))
+        reach = max_range + 1e-6  # farther than this from a segment's box: cannot see it
+        parts = []
+        for f in features:
+            key = memo.serial(f)[0]
+            known = memo.get("predict", key)
+            ranges = np.full(len(sensors), np.inf)
+            todo = np.ones(len(sensors), dtype=bool)
+            if known is not None:
+                known_ids, known_ranges = known
+                at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
+                todo = known_ids[at] != ids
+                ranges[~todo] = known_ranges[at[~todo]]
+            (x0, x1), (y0, y1) = sorted((f.p0[0], f.p1[0])), sorted((f.p0[1], f.p1[1]))
+            todo &= (sensors[:, 0] >= x0 - reach) & (sensors[:, 0] <= x1 + reach) \
+                & (sensors[:, 1] >= y0 - reach) & (sensors[:, 1] <= y1 + reach)
+            parts.append((key, ranges, np.flatnonzero(todo)))
+        # the new pairs of all features at once, element by element
+        i = np.concatenate([p[2] for p in parts])
+        segments = np.repeat(np.array([[*f.p0, *f.p1, 0.0] for f in features]),
+                             [len(p[2]) for p in parts], axis=0)
+        dist = nearest_in_cone(sensors[i, 0], sensors[i, 1], np.cos(sensors[i, 2]),
+                               np.sin(sensors[i, 2]), segments, half)[0]
+        found = np.split(np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf),
+                         np.cumsum([len(p[2]) for p in parts])[:-1])
+        out = np.full(len(sensors), np.inf)
+        for (key, ranges, todo), new in zip(parts, found):
+            ranges[todo] = new
+            memo.store("predict", key, (ids, ranges))
+            np.minimum(out, ranges, out=out)
+        return out
     segments = np.array([[*f.p0, *f.p1, 0.0] for f in features])
     out = np.empty(len(sensors))
-    half = math.radians(cone_deg) / 2
     for start in range(0, len(sensors), chunk):
         part = sensors[start:start + chunk]
         out[start:start + chunk], _ = cone_ranges(part, segments, half, max_range)

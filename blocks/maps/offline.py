@@ -32,7 +32,8 @@ from .features import (LinearFeature, extract_linear_features, merge_features, p
 from .logodds import log_odds_to_probability
 from .mapio import OccupancyMap
 
-__all__ = ["OfflineMapParams", "OfflineMap", "build_offline_map", "classify_readings",
+__all__ = ["OfflineMapParams", "OfflineMap", "beam_codes", "build_offline_map",
+           "classify_readings", "cone_reach", "finish_map", "grid_extent", "reading_model",
            "READING_CLASSES"]
 
 #: What the feature prediction made of each reading (the codes of :func:`classify_readings`).
@@ -131,6 +132,37 @@ def classify_readings(ranges: np.ndarray, echo: np.ndarray, predicted: np.ndarra
     return cls.astype(np.int8)
 
 
+def beam_codes(sensors: np.ndarray, free_to: np.ndarray, hit_at: np.ndarray,
+               resolution: float, arc_thickness: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                          np.ndarray]:
+    """Where and how far each beam is drawn, in grid cells and half cells.
+
+    Returns
+    -------
+    col, row
+        The apex cell, ``floor(x / resolution)`` and ``floor(y / resolution)``.
+    degree
+        The heading in whole degrees, 0..359 (the cone table to use).
+    free_code
+        Cells with a range code (half cells) below it are cleared.
+    lo_code, hi_code
+        Cells with a code from ``lo_code`` to ``hi_code`` are darkened (the
+        echo's arc); ``hi_code`` is -1 for beams that darken nothing
+        (``hit_at`` NaN).
+    """
+    res = resolution
+    half_arc = arc_thickness / 2
+    col = np.floor(sensors[:, 0] / res).astype(int)
+    row = np.floor(sensors[:, 1] / res).astype(int)
+    degrees = np.round(np.degrees(sensors[:, 2])).astype(int) % 360
+    free_code = np.floor(2 * free_to / res).astype(int)
+    hit = np.isfinite(hit_at)
+    lo_code = np.where(hit, np.ceil(2 * (np.nan_to_num(hit_at) - half_arc) / res), 0).astype(int)
+    hi_code = np.where(hit, np.floor(2 * (np.nan_to_num(hit_at) + half_arc) / res), -1).astype(int)
+    return col, row, degrees, free_code, lo_code, hi_code
+
+
 def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
                 sensors: np.ndarray, free_to: np.ndarray, hit_at: np.ndarray,
                 w_free: np.ndarray, w_occ: np.ndarray, p: OfflineMapParams,
@@ -138,15 +170,10 @@ def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
     """Add every beam's log-odds to ``log_odds`` in place (rows y up, ``corner`` = (ix, iy)
     of element [0, 0]).  ``hit_at`` is NaN for beams that darken nothing."""
     tables = cone_tables(p.resolution, cone_deg, reach)
-    res = p.resolution
-    half_arc = p.arc_thickness / 2
-    ix = np.floor(sensors[:, 0] / res).astype(int) - corner[0]
-    iy = np.floor(sensors[:, 1] / res).astype(int) - corner[1]
-    degrees = np.round(np.degrees(sensors[:, 2])).astype(int) % 360
-    free_code = np.floor(2 * free_to / res).astype(int)
+    col, row, degrees, free_code, lo_code, hi_code = beam_codes(
+        sensors, free_to, hit_at, p.resolution, p.arc_thickness)
+    ix, iy = col - corner[0], row - corner[1]
     hit = np.isfinite(hit_at)
-    lo_code = np.where(hit, np.ceil(2 * (np.nan_to_num(hit_at) - half_arc) / res), 0).astype(int)
-    hi_code = np.where(hit, np.floor(2 * (np.nan_to_num(hit_at) + half_arc) / res), -1).astype(int)
     for i in range(len(sensors)):
         far = max(free_code[i], hi_code[i])
         if far <= 0:
@@ -225,7 +252,23 @@ def build_offline_map(poses: np.ndarray, ranges: np.ndarray, mounts: np.ndarray,
     predicted = predict_ranges(flat, features, cone_deg, max_range).reshape(ranges.shape)
     cls = classify_readings(ranges, echo, predicted, max_range, p.agree_tol)
 
-    # per reading: how far to clear, where (if anywhere) to darken, with what confidence
+    free_to, hit_at, weight = reading_model(ranges, echo, cls, predicted, max_range, p)
+    reach = cone_reach(max_range, p)
+    corner, shape = grid_extent(flat, reach, p.resolution)
+    log_odds = np.zeros(shape, dtype=np.float32)
+    seen = np.zeros(shape, dtype=bool)
+    _draw_beams(log_odds, seen, corner, flat, free_to, hit_at, weight, weight, p,
+                cone_deg, reach)
+    m = finish_map(log_odds, seen, corner, features, p)
+    return OfflineMap(map=m, features=features, reading_class=cls, predicted=predicted,
+                      poses=poses)
+
+
+def reading_model(ranges: np.ndarray, echo: np.ndarray, cls: np.ndarray, predicted: np.ndarray,
+                  max_range: float, p: OfflineMapParams
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per reading (flattened): how far to clear, where (NaN: nowhere) to darken, with
+    what confidence (see the module docstring)."""
     r, c = ranges.ravel(), cls.ravel()
     weight = np.array([p.confirmed, p.unexplained, p.contradicted, 1.0, p.open_weight])[c]
     half_arc = p.arc_thickness / 2
@@ -233,20 +276,32 @@ def build_offline_map(poses: np.ndarray, ranges: np.ndarray, mounts: np.ndarray,
     free_to = np.where(specular, predicted.ravel() - half_arc,
                        np.where(echo.ravel(), r - half_arc, np.minimum(r, max_range)))
     hit_at = np.where(echo.ravel(), r, np.nan)
+    return free_to, hit_at, weight
 
-    reach = int(math.ceil((max_range + p.arc_thickness) / p.resolution)) + 1
-    res = p.resolution
+
+def cone_reach(max_range: float, p: OfflineMapParams) -> int:
+    """The cone radius (cells) that holds every beam and its arc."""
+    return int(math.ceil((max_range + p.arc_thickness) / p.resolution)) + 1
+
+
+def grid_extent(flat: np.ndarray, reach: int, res: float
+                ) -> tuple[tuple[int, int], tuple[int, int]]:
+    """The grid that holds every cone of sensors ``flat`` (M, 3): its corner cell
+    (ix, iy) and its shape (rows, columns)."""
     x0 = math.floor(flat[:, 0].min() / res) - reach - 2
     y0 = math.floor(flat[:, 1].min() / res) - reach - 2
     x1 = math.floor(flat[:, 0].max() / res) + reach + 3
     y1 = math.floor(flat[:, 1].max() / res) + reach + 3
-    log_odds = np.zeros((y1 - y0, x1 - x0), dtype=np.float32)
-    seen = np.zeros(log_odds.shape, dtype=bool)
-    _draw_beams(log_odds, seen, (x0, y0), flat, free_to, hit_at, weight, weight, p,
-                cone_deg, reach)
-    _draw_features(log_odds, seen, (x0, y0), features, p)
+    return (x0, y0), (y1 - y0, x1 - x0)
+
+
+def finish_map(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
+               features: list[LinearFeature], p: OfflineMapParams) -> OccupancyMap:
+    """The map from the beams' log-odds and "seen": the features drawn on, clamped, as
+    probabilities (NaN where nothing was seen).  ``log_odds`` and ``seen`` change."""
+    _draw_features(log_odds, seen, corner, features, p)
     np.clip(log_odds, -p.clamp, p.clamp, out=log_odds)
-    occupancy = np.where(seen, log_odds_to_probability(log_odds.astype(np.float64)), np.nan)
-    m = OccupancyMap(occupancy, res, (x0 * res, y0 * res, 0.0))
-    return OfflineMap(map=m, features=features, reading_class=cls, predicted=predicted,
-                      poses=poses)
+    occupancy = np.where(seen, log_odds_to_probability(np.asarray(log_odds, dtype=np.float64)),
+                         np.nan)
+    res = p.resolution
+    return OccupancyMap(occupancy, res, (corner[0] * res, corner[1] * res, 0.0))

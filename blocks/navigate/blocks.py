@@ -296,10 +296,13 @@ class RoomVisits(Block):
                                        spin_rate=self.p.spin_rate)
 
     def reset(self) -> None:
+        from blocks.maps.local import LocalMaps
+        from blocks.maps.offline import OfflineMapParams
+
         from .rooms import RoomVisitor
-        self._times: list[float] = []
-        self._poses: list[np.ndarray] = []
-        self._scans: list[np.ndarray] = []
+        self._maps = LocalMaps(self._mounts, cone_deg=self._cone, max_range=self._max_range,
+                               params=OfflineMapParams(resolution=self.p.map_resolution,
+                                                       correct_drift=False))
         self._builds: list[float] = []
         self._version: Any = None
         self.visitor = RoomVisitor(self._map_since, self._params, self._pursuit)
@@ -307,24 +310,15 @@ class RoomVisits(Block):
     def _map_since(self, since: float, near: tuple[float, float]):
         """The offline map (no drift fix) of the scans since ``since`` (s) taken within
         ``map_radius`` of ``near``, and their positions."""
-        import bisect
         import time
 
-        from blocks.maps.offline import OfflineMapParams, build_offline_map
-        lo = bisect.bisect_left(self._times, since)
-        poses = np.array(self._poses[lo:])
-        if len(poses):
-            close = np.hypot(poses[:, 0] - near[0], poses[:, 1] - near[1]) <= self.p.map_radius
-            poses, scans = poses[close], np.array(self._scans[lo:])[close]
-        if len(poses) < 2:
+        index = self._maps.window(since, near, self.p.map_radius)
+        if len(index) < 2:
             return None
         t0 = time.perf_counter()
-        built = build_offline_map(poses, scans, self._mounts,
-                                  cone_deg=self._cone, max_range=self._max_range,
-                                  params=OfflineMapParams(resolution=self.p.map_resolution,
-                                                          correct_drift=False))
+        built = self._maps.build(index)
         self._builds.append(time.perf_counter() - t0)
-        return built.map, poses[:, :2]
+        return built.map, built.poses[:, :2]
 
     def _take_signs(self, signs: Any) -> None:
         from .rooms import SignRef
@@ -345,9 +339,7 @@ class RoomVisits(Block):
         if not self.p.enabled:
             return {"v": float(v_in), "w": float(w_in), "visiting": False,
                     "done": bool(done_in)}
-        self._times.append(self.ctx.time)
-        self._poses.append(np.array(pose[:3], dtype=np.float64))
-        self._scans.append(np.array(ranges, dtype=np.float64))
+        self._maps.add(self.ctx.time, pose, ranges)
         if signs is not None:
             self._take_signs(signs)
         command = self.visitor.step(self.ctx.time, pose, hold=bool(hold))

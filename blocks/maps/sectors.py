@@ -1,0 +1,304 @@
+"""Sonar readings summed on a grid exactly, as row runs, and kept up to date as they change.
+
+The offline map (:mod:`blocks.maps.offline`) adds each reading's log-odds to
+every cell of its cone, one reading after the other in float32.  A cone cut
+off at a range is, on each grid row, a run of cells (:func:`blocks.maps.cones.cone_spans`),
+so a reading can instead leave a value at the start of each run and take it
+back after its end, on a difference grid; a cumulative sum along the rows
+then gives every cell its total.  That is work per row, not per cell.
+
+The sums are exact: a reading's log-odds are float32 numbers, each a whole
+multiple of ``2**-e`` for a small ``e`` (27 for the default weights), and
+float64 adds such numbers without rounding as long as the totals stay below
+``2**(52 - e)``.  So the result does not depend on the order of the readings,
+and a sum can be updated by subtracting the readings that left or changed
+and adding the new ones (:class:`BeamSums`), with the same result as a sum
+from scratch.  (The float32 sums of the offline map differ from these by
+their rounding, about 1e-6 per reading.)
+
+A reading ("beam") is given by codes in half cells, as in the offline map:
+its free space covers the cone's cells with a range code below ``free``, its
+echo darkens the cells with ``lo <= code <= hi`` (``hi < lo``: no echo), the
+echo winning where the two meet.
+
+Which cells a reading touched is not kept: a cell whose sum is not 0 was
+touched, and a touched cell whose readings cancel out exactly has
+probability 1/2, unknown like an untouched one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cones import ConeSpans
+
+__all__ = ["BeamSums", "Beams", "beam_terms", "exact_weights", "sum_beams"]
+
+
+@dataclass(frozen=True)
+class Beams:
+    """Readings on a grid, one row each (all (N,) arrays).
+
+    Attributes
+    ----------
+    row, col
+        The apex cell (grid indices of the map frame: ``floor(y / res)``,
+        ``floor(x / res)``).
+    degree
+        Heading in whole degrees, 0..359.
+    free, lo, hi
+        Range codes in half cells: free below ``free``; darkened from ``lo`` to
+        ``hi`` inclusive (none if ``hi < lo``).
+    free_value, occ_value
+        Log-odds added to a free and to a darkened cell (float32 values, as float64).
+    """
+
+    row: np.ndarray
+    col: np.ndarray
+    degree: np.ndarray
+    free: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    free_value: np.ndarray
+    occ_value: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.row)
+
+    def take(self, index: np.ndarray) -> Beams:
+        return Beams(*(getattr(self, name)[index] for name in self.__dataclass_fields__))
+
+    def table(self) -> np.ndarray:
+        """(N, 8) float64: every field, to compare readings row by row."""
+        return np.column_stack([getattr(self, name) for name in self.__dataclass_fields__]
+                               ).astype(np.float64)
+
+
+def beam_terms(beams: Beams, limit: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each reading as a signed sum of cut cones ``{code < t}``.
+
+    A reading adds ``free_value`` where ``code < free`` and not darkened, and
+    ``occ_value`` where ``lo <= code <= hi``; with ``S(t) = {code < t}`` and
+    ``h = hi + 1``, ``l = min(lo, h)`` that is::
+
+        free_value * (S(free) - S(min(free, h)) + S(min(free, l))) + occ_value * (S(h) - S(l))
+
+    Returns
+    -------
+    beam, t, value
+        One row per term: the reading, the code bound ``t`` (1..limit) and
+        the log-odds.
+
+    Examples
+    --------
+    >>> b = Beams(*[np.array([v]) for v in (0, 0, 0, 6, 6, 9, -0.4, 0.85)])
+    >>> beam, t, value = beam_terms(b, limit=100)
+    >>> t.tolist(), value.tolist()
+    ([6, 10, 6], [-0.4, 0.85, -0.85])
+    """
+    free = beams.free
+    occ = beams.hi >= beams.lo
+    h = np.where(occ, beams.hi + 1, 0)
+    l = np.where(occ, np.maximum(np.minimum(beams.lo, h), 0), 0)  # noqa: E741
+    live = np.maximum(free, beams.hi) > 0  # as the offline map: nothing when both bounds are 0
+    fv, ov = beams.free_value, beams.occ_value
+    t = np.stack([free, np.minimum(free, h), np.minimum(free, l), h, l], axis=1)
+    value = np.stack([fv, -fv, fv, ov, -ov], axis=1)
+    keep = live[:, None] & (t > 0) & (value != 0)
+    # S(a) - S(a) terms cancel: drop pairs of equal bounds with opposite signs
+    same_fh = t[:, 0] == t[:, 1]
+    keep[:, 0] &= ~same_fh
+    keep[:, 1] &= ~same_fh
+    same_hl = t[:, 3] == t[:, 4]
+    keep[:, 3] &= ~same_hl
+    keep[:, 4] &= ~same_hl
+    beam = np.broadcast_to(np.arange(len(free))[:, None], t.shape)
+    return beam[keep], np.minimum(t[keep], limit), value[keep]
+
+
+def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: int
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The difference-grid entries of ``beams``: flat indices and log-odds.
+
+    The grid's element [0, 0] is cell ``corner`` = (row, col); its rows are
+    ``stride`` long (one more than the map is wide, for the ends of runs that
+    reach the last column).  Every cone must lie inside the grid.  A run that
+    the disk cuts away entirely starts and ends at the same place: its two
+    entries cancel.
+    """
+    beam, t, value = beam_terms(beams, spans.limit)
+    degree = beams.degree[beam]
+    y = spans.rows_below[t]
+    e0 = spans.first[degree, spans.reach - y]
+    n = np.maximum(spans.first[degree, spans.reach + y + 1] - e0, 0)
+    total = int(n.sum())
+    entry = np.arange(total, dtype=np.int64)
+    entry += np.repeat(e0 - (np.cumsum(n) - n), n)
+    w = spans.half_width.ravel()[np.repeat(t * (spans.reach + 1), n) + spans.abs_row[entry]]
+    ends = np.empty(2 * total, dtype=np.int64)  # run starts, then run ends
+    a, b = ends[:total], ends[total:]
+    np.maximum(spans.start[entry], -w, out=a)
+    w += 1
+    np.minimum(spans.stop[entry], w, out=b)
+    np.maximum(b, a, out=b)
+    base = spans.row[entry]
+    base *= stride
+    base += np.repeat((beams.row[beam] - corner[0]) * stride + beams.col[beam] - corner[1], n)
+    a += base
+    b += base
+    values = np.empty(2 * total)
+    values[:total] = np.repeat(value, n)
+    np.negative(values[:total], out=values[total:])
+    return ends, values
+
+
+def sum_beams(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
+              shape: tuple[int, int]) -> np.ndarray:
+    """The log-odds (float64) of ``beams`` on a grid of ``shape`` at ``corner``.
+
+    The sums are exact for :func:`exact_weights` log-odds, else within float64 rounding.
+    """
+    return _integrate(_difference_grid(spans, beams, corner, shape), shape[1])
+
+
+def _difference_grid(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
+                     shape: tuple[int, int]) -> np.ndarray:
+    h, w = shape
+    index, value = run_ends(spans, beams, corner, w + 1)
+    if index.size and (index.min() < 0 or index.max() >= h * (w + 1)):
+        raise ValueError("a reading's cone reaches outside the grid")
+    return np.bincount(index, value, minlength=h * (w + 1)).reshape(h, w + 1)
+
+
+def _integrate(diff: np.ndarray, width: int) -> np.ndarray:
+    return np.cumsum(diff, axis=1)[:, :width]
+
+
+def exact_weights(values: np.ndarray, readings: int) -> bool:
+    """Whether sums of ``readings`` of these log-odds are exact in float64 in any order.
+
+    True when every value is a whole multiple of ``2**-e`` and ``readings``
+    times the largest stays below ``2**(52 - e)``.
+
+    Examples
+    --------
+    >>> exact_weights(np.float32([-0.4, 0.85]).astype(np.float64), 10_000)
+    True
+    >>> exact_weights(np.array([0.1]), 10)  # 0.1 needs all 53 bits of a float64
+    False
+    """
+    values = np.asarray(values, dtype=np.float64)
+    values = values[values != 0]
+    if values.size == 0:
+        return True
+    if not np.isfinite(values).all():
+        return False
+    values = np.unique(values)
+    e = 0
+    while e <= 60 and not (np.ldexp(values, e) == np.round(np.ldexp(values, e))).all():
+        e += 1
+    if e > 60:
+        return False
+    return readings * float(np.abs(values).max()) < 2.0 ** (52 - e)
+
+
+@dataclass
+class _State:
+    keys: np.ndarray  # (N,) sorted reading keys
+    table: np.ndarray  # (N, 8) the readings, as Beams.table()
+    beams: Beams
+    corner: tuple[int, int]
+    diff: np.ndarray  # (H, W + 1) log-odds difference grid
+
+
+class BeamSums:
+    """Exact sums of readings that mostly recur from one call to the next.
+
+    Each call gives the readings of a map with a key each (e.g. scan number x
+    16 + sensor); the sums start from the kept call whose readings differ
+    least from the new ones, subtract the readings that are gone or changed
+    and add the new ones.  The result is the same as :func:`sum_beams` from
+    scratch (exactly: see the module), whatever the history.
+
+    Parameters
+    ----------
+    spans
+        The cone runs (:func:`blocks.maps.cones.cone_spans`).
+    keep
+        How many past calls to keep (each holds a float64 grid).
+    """
+
+    def __init__(self, spans: ConeSpans, keep: int = 6) -> None:
+        self.spans = spans
+        self.keep = keep
+        self._states: list[_State] = []
+        self.readings_drawn = 0  # readings added or subtracted, over all calls (for tests)
+
+    def __call__(self, keys: np.ndarray, beams: Beams, corner: tuple[int, int],
+                 shape: tuple[int, int]) -> np.ndarray:
+        """The log-odds of ``beams`` (keys sorted, unique) on the grid at ``corner``."""
+        keys = np.asarray(keys, dtype=np.int64)
+        table = beams.table()
+        exact = exact_weights(np.concatenate([beams.free_value, beams.occ_value]),
+                              2 * len(beams))
+        base, plan = self._best_start(keys, table) if exact else (None, None)
+        if base is None:
+            diff = _difference_grid(self.spans, beams, corner, shape)
+            self.readings_drawn += len(beams)
+        else:
+            gone, new = plan
+            diff = self._update(base, beams, gone, new, corner, shape)
+        if exact:
+            self._states.insert(0, _State(keys, table, beams, corner, diff))
+            del self._states[self.keep:]
+        return _integrate(diff, shape[1])
+
+    def _best_start(self, keys: np.ndarray, table: np.ndarray):
+        """The kept call that needs the fewest readings changed, and what to change."""
+        best, best_cost, best_plan = None, len(keys), None
+        for state in self._states:
+            at = np.minimum(np.searchsorted(state.keys, keys), len(state.keys) - 1)
+            i_new = np.flatnonzero(state.keys[at] == keys)  # keys sorted and unique in both
+            i_old = at[i_new]
+            same = (state.table[i_old] == table[i_new]).all(axis=1)
+            kept_old = np.zeros(len(state.keys), dtype=bool)
+            kept_old[i_old[same]] = True
+            kept_new = np.zeros(len(keys), dtype=bool)
+            kept_new[i_new[same]] = True
+            cost = int((~kept_old).sum() + (~kept_new).sum())
+            if cost < best_cost:
+                best, best_cost = state, cost
+                best_plan = (np.flatnonzero(~kept_old), np.flatnonzero(~kept_new))
+        return best, best_plan
+
+    def _update(self, base: _State, beams: Beams, gone: np.ndarray, new: np.ndarray,
+                corner: tuple[int, int], shape: tuple[int, int]) -> np.ndarray:
+        """The kept grid, less the readings gone, plus the new ones, on a grid that holds
+        both (what lies outside the new grid then cancels to exactly 0), cut to the new."""
+        h, w = shape
+        bh, bw = base.diff.shape[0], base.diff.shape[1] - 1
+        r0, c0 = min(corner[0], base.corner[0]), min(corner[1], base.corner[1])
+        r1 = max(corner[0] + h, base.corner[0] + bh)
+        c1 = max(corner[1] + w, base.corner[1] + bw)
+        union = (r1 - r0, c1 - c0)
+        stride = union[1] + 1
+        if (r0, c0) == base.corner and union == (bh, bw):
+            diff = base.diff.copy()
+        else:
+            diff = np.zeros((union[0], stride))
+            br, bc = base.corner[0] - r0, base.corner[1] - c0
+            diff[br:br + bh, bc:bc + bw + 1] = base.diff
+        i_old, v_old = run_ends(self.spans, base.beams.take(gone), (r0, c0), stride)
+        i_new, v_new = run_ends(self.spans, beams.take(new), (r0, c0), stride)
+        index = np.concatenate([i_old, i_new])
+        if index.size:
+            lo = int(index.min())
+            size = int(index.max()) + 1 - lo
+            diff.reshape(-1)[lo:lo + size] += np.bincount(
+                index - lo, np.concatenate([-v_old, v_new]), minlength=size)
+        self.readings_drawn += len(gone) + len(new)
+        nr, nc = corner[0] - r0, corner[1] - c0
+        if (nr, nc) == (0, 0) and union == shape:
+            return diff
+        return diff[nr:nr + h, nc:nc + w + 1].copy()

@@ -1,0 +1,327 @@
+"""The room visits' local maps: cone runs, exact beam sums kept between calls, the feature
+memo, and LocalMaps against build_offline_map on sliding windows."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from blocks.maps.cones import cone_spans, cone_tables, cone_window
+from blocks.maps.features import (FeatureMemo, _fit_line, _line_tests, extract_linear_features,
+                                  merge_features, predict_ranges, sensor_poses_along)
+from blocks.maps.local import LocalMaps
+from blocks.maps.offline import OfflineMapParams, _draw_beams, beam_codes, build_offline_map
+from blocks.maps.sectors import BeamSums, Beams, beam_terms, exact_weights, sum_beams
+from sim2d.robot import load_robot
+from sim2d.sonar import SonarSpec, sonar_readings
+
+MOUNTS = np.asarray(load_robot("atrv_mini").sonar_mounts)
+CORRIDOR = np.array([[0.0, 0.0, 12.0, 0.0, 0.05], [0.0, 3.0, 12.0, 3.0, 0.05],
+                     [0.0, 0.0, 0.0, 3.0, 0.05], [12.0, 0.0, 12.0, 3.0, 0.05],
+                     [5.0, 1.6, 5.6, 2.2, 0.05]])  # a crate at an angle
+
+
+@pytest.fixture(scope="module")
+def corridor():
+    """A drive east along the corridor, a turn on the spot, and back: poses, readings."""
+    rng = np.random.default_rng(3)
+    out = [[1.0 + 0.045 * k, 0.9, 0.0] for k in range(150)]
+    turn = [[out[-1][0], 0.9, math.pi * k / 30] for k in range(1, 31)]
+    back = [[out[-1][0] - 0.045 * k, 0.9 + 0.01 * k, math.pi] for k in range(1, 120)]
+    poses = np.array(out + turn + back)
+    spec = SonarSpec(specular=True, noise_std=0.01)
+    ranges = np.array([sonar_readings(sensor_poses_along(p[None], MOUNTS)[0], CORRIDOR, spec,
+                                      rng)[0] for p in poses])
+    return poses, ranges
+
+
+# ---- cone runs ------------------------------------------------------------------------------
+def test_cone_spans_cut_by_the_disk_are_the_table_cells_below_each_code():
+    res, cone, reach = 0.1, 30.0, 12
+    spans = cone_spans(res, cone, reach)
+    for k, (dr, dc, codes) in enumerate(cone_tables(res, cone, reach)):
+        for t in range(spans.limit + 1):
+            want = np.zeros((2 * reach + 1, 2 * reach + 1), dtype=bool)
+            want[reach + dr:reach + dr + codes.shape[0],
+                 reach + dc:reach + dc + codes.shape[1]] = codes < t
+            got = np.zeros_like(want)
+            for e in range(spans.first[k, 0], spans.first[k, -1]):
+                w = spans.half_width[t, abs(spans.row[e])]
+                a, b = max(spans.start[e], -w), min(spans.stop[e], w + 1)
+                got[reach + spans.row[e], reach + a:reach + max(a, b)] = True
+            assert np.array_equal(got, want), (k, t)
+
+
+# ---- exact sums -------------------------------------------------------------------------------
+def _random_beams(rng: np.random.Generator, n: int, size: int, reach: int,
+                  weights=(1.0, 0.5, 0.25)) -> Beams:
+    p = OfflineMapParams(resolution=0.1)
+    sensors = np.column_stack([rng.uniform(reach + 3, size - reach - 3, (n, 2)) * 0.1,
+                               rng.uniform(-math.pi, math.pi, n)])
+    ranges = rng.uniform(0.05, 1.1, n)
+    echo = rng.random(n) < 0.7
+    free_to = np.where(echo, ranges - 0.025, ranges)
+    hit_at = np.where(echo, ranges, np.nan)
+    weight = rng.choice(weights, n)
+    col, row, degree, free, lo, hi = beam_codes(sensors, free_to, hit_at, p.resolution,
+                                                p.arc_thickness)
+    return Beams(row, col, degree, free, lo, hi,
+                 (p.l_free * weight).astype(np.float32).astype(np.float64),
+                 (p.l_occ * weight).astype(np.float32).astype(np.float64)), \
+        (sensors, free_to, hit_at, weight, p)
+
+
+def _cell_by_cell(beams: Beams, shape, reach: int, res: float = 0.1):
+    """Every beam added cell by cell from the cone tables, in float64 (exact here)."""
+    tables = cone_tables(res, 30.0, reach)
+    total = np.zeros(shape)
+    seen = np.zeros(shape, dtype=bool)
+    for i in range(len(beams)):
+        far = max(beams.free[i], beams.hi[i])
+        if far <= 0:
+            continue
+        rows, cols, sub = cone_window(tables[beams.degree[i]], beams.row[i], beams.col[i],
+                                      far // 2 + 1)
+        delta = np.where(sub < beams.free[i], beams.free_value[i], 0.0)
+        delta[(sub >= beams.lo[i]) & (sub <= beams.hi[i])] = beams.occ_value[i]
+        total[rows, cols] += delta
+        seen[rows, cols] |= delta != 0
+    return total, seen
+
+
+def test_beam_sums_are_the_exact_cell_by_cell_sums_and_the_float32_loop_to_rounding():
+    rng = np.random.default_rng(0)
+    reach, size = 12, 60
+    beams, (sensors, free_to, hit_at, weight, p) = _random_beams(rng, 300, size, reach)
+    spans = cone_spans(0.1, 30.0, reach)
+    total = sum_beams(spans, beams, (0, 0), (size, size))
+    want, want_seen = _cell_by_cell(beams, (size, size), reach)
+    assert np.array_equal(total, want)  # exact: the order of the additions does not matter
+    assert np.array_equal(total != 0, want_seen)  # no cell's readings cancel out here
+    old = np.zeros((size, size), dtype=np.float32)
+    old_seen = np.zeros((size, size), dtype=bool)
+    _draw_beams(old, old_seen, (0, 0), sensors, free_to, hit_at, weight, weight, p, 30.0, reach)
+    assert np.array_equal(old_seen, want_seen)
+    assert np.abs(total - old).max() < 1e-5
+    assert np.abs(total).max() > 1.0
+
+
+def test_beam_terms_of_a_reading_without_echo_and_of_a_silent_one():
+    b = Beams(*[np.array([v, v]) for v in (0, 0, 0)],
+              np.array([8, 0]), np.array([0, 0]), np.array([-1, -1]),
+              np.array([-0.4, -0.4]), np.array([0.85, 0.85]))
+    beam, t, value = beam_terms(b, limit=100)
+    assert beam.tolist() == [0] and t.tolist() == [8] and value.tolist() == [-0.4]
+
+
+def test_cones_must_fit_in_the_grid():
+    rng = np.random.default_rng(1)
+    beams, _ = _random_beams(rng, 5, 60, 12)
+    with pytest.raises(ValueError, match="outside the grid"):
+        sum_beams(cone_spans(0.1, 30.0, 12), beams, (0, 0), (20, 20))
+
+
+def test_kept_sums_give_the_sums_from_scratch_whatever_changes():
+    rng = np.random.default_rng(2)
+    reach, size = 12, 80
+    pool, _ = _random_beams(rng, 400, size, reach)
+    spans = cone_spans(0.1, 30.0, reach)
+    sums = BeamSums(spans, keep=3)
+    keys = np.arange(len(pool))
+    windows = [(0, 200), (20, 230), (40, 260), (0, 200), (300, 400), (35, 250)]
+    drawn_from_scratch = 0
+    for step, (a, b) in enumerate(windows):
+        index = keys[a:b]
+        beams = pool.take(index)
+        if step == 2:  # some readings change class: other weights, other free range
+            beams = Beams(beams.row, beams.col, beams.degree, beams.free + (index % 7 == 0),
+                          beams.lo, beams.hi, beams.free_value, beams.occ_value)
+        # a grid that holds these cones only, at another corner every time
+        r0, c0 = beams.row.min() - reach - 2, beams.col.min() - reach - 2
+        shape = (beams.row.max() + reach + 3 - r0, beams.col.max() + reach + 3 - c0)
+        got = sums(index, beams, (r0, c0), shape)
+        assert np.array_equal(got, sum_beams(spans, beams, (r0, c0), shape)), step
+        drawn_from_scratch += len(beams)
+    assert sums.readings_drawn < 0.6 * drawn_from_scratch
+
+
+def test_weights_that_do_not_sum_exactly_are_never_kept():
+    rng = np.random.default_rng(4)
+    beams, _ = _random_beams(rng, 50, 60, 12)
+    odd = Beams(beams.row, beams.col, beams.degree, beams.free, beams.lo, beams.hi,
+                beams.free_value + 0.1, beams.occ_value)
+    assert not exact_weights(odd.free_value, 100)
+    sums = BeamSums(cone_spans(0.1, 30.0, 12))
+    for _ in range(2):
+        got = sums(np.arange(50), odd, (0, 0), (60, 60))
+    assert sums.readings_drawn == 100  # drawn from scratch both times
+    assert np.allclose(got, sum_beams(sums.spans, odd, (0, 0), (60, 60)))
+
+
+# ---- features ---------------------------------------------------------------------------------
+def _fit_test(points: np.ndarray, q: np.ndarray, tol: float) -> bool:
+    centre, direction = _fit_line(points)
+    return abs(direction[0] * (q[1] - centre[1]) - direction[1] * (q[0] - centre[0])) > tol
+
+
+def test_fast_line_tests_agree_with_the_fit_or_say_they_are_unsure():
+    rng = np.random.default_rng(5)
+    along = np.cumsum(rng.uniform(0.0, 0.06, 300))
+    pts = np.column_stack([10 + along, 3 + 0.02 * np.sin(along * 3) + rng.normal(0, 0.02, 300)])
+    pts[150:160] = pts[150]  # the robot standing still: all echoes in one place
+    status = _line_tests(pts, 20, 0.04)
+    decided = unsure = 0
+    for s in range(len(pts) - 21):
+        for length in range(3, 21):
+            code = status[s, length]
+            if code == 2:
+                unsure += 1
+                continue
+            decided += 1
+            assert bool(code) == _fit_test(pts[s:s + length], pts[s + length], 0.04)
+    assert unsure > 0 and decided > 50 * unsure
+    assert (status[150, 3:10] == 2).all()  # identical points: no line to trust
+
+
+def _same_features(a, b) -> bool:
+    return len(a) == len(b) and all(
+        np.array_equal(f.points, g.points) and np.array_equal(f.p0, g.p0)
+        and np.array_equal(f.p1, g.p1) and f.residual == g.residual for f, g in zip(a, b))
+
+
+def test_the_memo_gives_the_features_of_a_call_without_it(corridor):
+    poses, ranges = corridor
+    echo = ranges < 3.95
+    memo = FeatureMemo(max_age=2)
+    for a, b in [(0, 120), (10, 140), (10, 200), (60, 299), (0, 120), (100, 250)]:
+        index = np.arange(a, b)
+        index = index[index % 9 != 4]  # holes, as the distance filter leaves
+        sensors = sensor_poses_along(poses[index], MOUNTS)
+        plain = extract_linear_features(sensors, ranges[index], echo[index])
+        kept = extract_linear_features(sensors, ranges[index], echo[index], ids=index, memo=memo)
+        assert plain and _same_features(plain, kept)
+        assert _same_features(merge_features(plain), merge_features(kept, memo=memo))
+    assert memo.hits > 100  # segments, runs and merges seen before
+
+
+def test_a_memo_needs_ids():
+    with pytest.raises(ValueError, match="ids"):
+        extract_linear_features(np.zeros((2, 1, 3)), np.ones((2, 1)), np.ones((2, 1), bool),
+                                memo=FeatureMemo())
+
+
+# ---- local maps -------------------------------------------------------------------------------
+def test_local_maps_are_the_offline_maps_of_their_windows(corridor):
+    poses, ranges = corridor
+    maps = LocalMaps(MOUNTS, params=OfflineMapParams(correct_drift=False))
+    params = OfflineMapParams(correct_drift=False)
+    checked = 0
+    for t, (pose, r) in enumerate(zip(poses, ranges)):
+        maps.add(0.1 * t, pose, r)
+        if t % 40 != 39:
+            continue
+        for since, near in [(0.1 * t - 12.0, tuple(pose[:2])), (0.1 * t - 20.0, (6.0, 1.5))]:
+            index = maps.window(since, near, 4.0)
+            built = maps.build(index)
+            want = build_offline_map(poses[index], ranges[index], MOUNTS, params=params)
+            assert _same_features(built.features, want.features)
+            assert np.array_equal(built.predicted, want.predicted)
+            assert np.array_equal(built.reading_class, want.reading_class)
+            assert built.map.origin == want.map.origin
+            for got, exp in zip(built.map.classes(), want.map.classes()):
+                assert np.array_equal(got, exp)
+            assert np.nanmax(np.abs(built.map.occupancy - want.map.occupancy)) < 1e-4
+            checked += 1
+    assert checked == 14
+    assert len(maps) == len(poses)
+
+
+def test_local_maps_take_scans_in_time_order_and_known_indices():
+    maps = LocalMaps(MOUNTS)
+    maps.add(1.0, np.zeros(3), np.full(16, 2.0))
+    with pytest.raises(ValueError, match="time order"):
+        maps.add(0.5, np.zeros(3), np.full(16, 2.0))
+    with pytest.raises(ValueError, match="index"):
+        maps.build(np.array([0, 1]))
+    assert maps.window(0.0, (10.0, 0.0), 1.0).size == 0
+
+
+def test_cone_geometry_element_by_element_is_cone_ranges():
+    from sim2d.sonar import cone_ranges, nearest_in_cone
+    rng = np.random.default_rng(6)
+    sensors = np.column_stack([rng.uniform(0, 12, 200), rng.uniform(0, 3, 200),
+                               rng.uniform(-math.pi, math.pi, 200)])
+    half = math.radians(15)
+    for segment in CORRIDOR:  # paired with each sensor: as cone_ranges, one capsule at a time
+        want, _ = cone_ranges(sensors, segment[None], half, 4.0)
+        dist = nearest_in_cone(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
+                               np.sin(sensors[:, 2]), np.tile(segment, (200, 1)), half)[0]
+        got = np.where(dist <= 4.0, np.maximum(dist, 0.0), np.inf)
+        assert np.array_equal(got, want)
+        assert np.isfinite(want).any()
+
+
+def test_kept_predictions_are_the_predictions(corridor):
+    poses, ranges = corridor
+    echo = ranges < 3.95
+    memo = FeatureMemo()
+    for a, b in [(0, 150), (30, 200), (30, 260)]:
+        index = np.arange(a, b)
+        sensors = sensor_poses_along(poses[index], MOUNTS)
+        features = merge_features(extract_linear_features(sensors, ranges[index], echo[index]))
+        flat = sensors.reshape(-1, 3)
+        keys = (index[:, None] * 16 + np.arange(16)).ravel()
+        want = predict_ranges(flat, features, 30.0, 4.0)
+        assert np.array_equal(predict_ranges(flat, features, 30.0, 4.0, ids=keys, memo=memo),
+                              want)
+        assert np.isfinite(want).mean() > 0.5
+
+
+def test_the_quick_merge_test_agrees_or_defers():
+    rng = np.random.default_rng(7)
+    from blocks.maps.features import LinearFeature, _mergeable, _mergeable_quick
+
+    def feature(x0, y0, x1, y1):
+        d = np.array([x1 - x0, y1 - y0]) / math.hypot(x1 - x0, y1 - y0)
+        return LinearFeature(np.array([x0, y0]), np.array([x1, y1]), np.array([-d[1], d[0]]),
+                             np.zeros((0, 2)), 0.0)
+
+    def numbers(f):
+        return (*f.normal.tolist(), *f.p0.tolist(), *f.p1.tolist())
+
+    deferred = 0
+    for _ in range(2000):
+        x, y = rng.uniform(0, 10, 2)
+        a = feature(x, y, x + rng.uniform(0.5, 3), y + rng.normal(0, 0.05))
+        b = feature(*(a.p1 + rng.normal(0, 0.2, 2)), *(a.p1 + [rng.uniform(0.3, 2), 0]
+                                                       + rng.normal(0, 0.1, 2)))
+        quick = _mergeable_quick(numbers(a), numbers(b), math.cos(math.radians(6)), 0.1, 0.3)
+        if quick is None:
+            deferred += 1
+        else:
+            assert quick == _mergeable(a, b, math.radians(6), 0.1, 0.3)
+    edge = feature(0, 0, 1, 0), feature(1.3, 0, 2, 0)  # a gap of exactly max_gap
+    assert _mergeable_quick(numbers(edge[0]), numbers(edge[1]), 0.99, 0.1, 0.3) is None
+    assert deferred < 20
+
+
+def test_readings_checks_at_once_are_the_checks_one_by_one(corridor):
+    from blocks.maps.features import _explained, _explains
+    poses, ranges = corridor
+    sensors = sensor_poses_along(poses[:150], MOUNTS)
+    features = extract_linear_features(sensors, ranges[:150], ranges[:150] < 3.95)
+    rng = np.random.default_rng(8)
+    checks = []
+    for i, f in enumerate(features[:12]):
+        rows, j = rng.choice(150, 30, replace=False), int(rng.integers(16))
+        checks.append((i, f, sensors[rows, j], ranges[rows, j]))
+    want = [_explains(f, s, r, 30.0, 0.08) for _, f, s, r in checks]
+    assert _explained(checks, 30.0, 0.08) == want
+    assert any(want) and not all(want)
+
+
+def test_line_tests_need_three_echoes():
+    with pytest.raises(ValueError, match="recent"):
+        extract_linear_features(np.zeros((2, 1, 3)), np.ones((2, 1)), np.ones((2, 1), bool),
+                                recent=2)
