@@ -325,3 +325,12 @@ def test_line_tests_need_three_echoes():
     with pytest.raises(ValueError, match="recent"):
         extract_linear_features(np.zeros((2, 1, 3)), np.ones((2, 1)), np.ones((2, 1), bool),
                                 recent=2)
+
+
+def test_line_tests_in_chunks_equal_line_tests_at_once(monkeypatch):
+    from blocks.maps import features
+    rng = np.random.default_rng(3)
+    pts = np.cumsum(rng.normal(0, 0.05, (301, 2)), axis=0)
+    whole = _line_tests(pts, 20, 0.04)
+    monkeypatch.setattr(features, "LINE_TEST_ROWS", 7)  # 43 chunks, the last one short
+    assert np.array_equal(_line_tests(pts, 20, 0.04), whole)

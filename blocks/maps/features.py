@@ -268,6 +268,9 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
 _KEEPS, _BREAKS, _UNSURE = 0, 1, 2
 
 
+LINE_TEST_ROWS = 4096  # starts tested at once: bounds the (rows, recent + 1, 2) temporaries
+
+
 def _line_tests(pts: np.ndarray, recent: int, line_tol: float) -> np.ndarray:
     """Does echo ``s + L`` leave the line through echoes ``s .. s + L - 1``?
 
@@ -276,16 +279,29 @@ def _line_tests(pts: np.ndarray, recent: int, line_tol: float) -> np.ndarray:
     from running sums, which round differently from :func:`_fit_line`; a
     test is only decided here when its distance from ``line_tol`` exceeds a
     bound on both roundings, else it is ``_UNSURE`` and the caller fits
-    exactly, so decisions are those of :func:`_fit_line`.
+    exactly, so decisions are those of :func:`_fit_line`.  Starts are tested
+    :data:`LINE_TEST_ROWS` at a time (each row's arithmetic is its own), so
+    a whole run's echoes need tens of megabytes, not hundreds.
     """
     n = len(pts)
     status = np.zeros((n, recent + 1), dtype=np.int8)
     if n < 4:
         return status
+    for start in range(0, n, LINE_TEST_ROWS):
+        stop = min(n, start + LINE_TEST_ROWS)
+        status[start:stop] = _line_test_rows(pts, start, stop, recent, line_tol)
+    return status
+
+
+def _line_test_rows(pts: np.ndarray, start: int, stop: int, recent: int,
+                    line_tol: float) -> np.ndarray:
+    """:func:`_line_tests` for the starts ``start .. stop - 1``."""
+    n = len(pts)
     offsets = np.arange(recent + 1)
-    idx = np.minimum(np.arange(n)[:, None] + offsets[None, :], n - 1)
-    ref = pts[:, None, :]
-    u = pts[idx] - ref  # (n, recent + 1, 2), relative to the tail's first echo
+    starts = np.arange(start, stop)
+    idx = np.minimum(starts[:, None] + offsets[None, :], n - 1)
+    ref = pts[start:stop, None, :]
+    u = pts[idx] - ref  # (rows, recent + 1, 2), relative to the tail's first echo
     q = u[:, 1:, :]  # the echo tested against a tail of L = 1..recent echoes
     head = u[:, :-1, :]
     count = offsets[1:].astype(np.float64)
@@ -306,10 +322,11 @@ def _line_tests(pts: np.ndarray, recent: int, line_tol: float) -> np.ndarray:
         turn = np.where(scatter > 0, 2e-11 * size / scatter, np.inf)
         slack = np.hypot(ex, ey) * turn + 1e-11 * (1.0 + np.abs(ref).sum(axis=2) + np.sqrt(size))
         decided = np.abs(np.abs(cross) - line_tol) > slack  # NaN slack (0 * inf): unsure
-    out = np.where(decided, np.where(np.abs(cross) > line_tol, _BREAKS, _KEEPS), _UNSURE)
-    status[:, 1:] = out
+    status = np.zeros((stop - start, recent + 1), dtype=np.int8)
+    status[:, 1:] = np.where(decided, np.where(np.abs(cross) > line_tol, _BREAKS, _KEEPS),
+                             _UNSURE)
     status[:, :3] = _KEEPS
-    status[np.arange(n)[:, None] + offsets[None, :] >= n] = _KEEPS  # past the last echo
+    status[starts[:, None] + offsets[None, :] >= n] = _KEEPS  # past the last echo
     return status
 
 
@@ -540,7 +557,7 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
 
 
 def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg: float,
-                   max_range: float, chunk: int = 4096, *, ids: np.ndarray | None = None,
+                   max_range: float, chunk: int = 1024, *, ids: np.ndarray | None = None,
                    memo: FeatureMemo | None = None) -> np.ndarray:
     """The range at which each sensor's cone first meets a feature (``inf`` if none).
 
