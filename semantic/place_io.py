@@ -14,7 +14,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from blocks.core.atomic import atomic_write_figure, atomic_write_text
-from blocks.maps.mapio import OccupancyMap
+from blocks.maps.mapio import OccupancyMap, map_rgba
 from semantic.places import PlaceMap
 
 
@@ -133,16 +133,12 @@ def draw_place_map(path: str | Path, pm: PlaceMap, m: OccupancyMap,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    p = np.asarray(m.occupancy, dtype=np.float64)
-    occupied, free, _ = m.classes()
-    rgb = np.repeat((1 - np.clip(np.nan_to_num(p, nan=0.5), 0, 1))[:, :, None], 3, axis=2)
-    rgb[free] = 1.0
-    rgb[np.isnan(p)] = (175 / 255, 160 / 255, 150 / 255)
-    colours = _colours(len(pm.places) + 1)
+    rgb = map_rgba(m)  # 8-bit: a float picture of a large map costs ~150 MB to draw
+    colours = (_colours(len(pm.places) + 1) * 255).astype(np.uint8)  # as matplotlib truncates
     for i, place in enumerate(pm.places):
-        rgb[pm.labels == int(place.id[1:])] = colours[i]
-    rgb[occupied] = 0.0
-    h, w = p.shape
+        rgb[pm.labels == int(place.id[1:]), :3] = colours[i]
+    rgb[m.classes()[0], :3] = 0  # walls over the places
+    h, w = m.shape
     ox, oy = float(m.origin[0]), float(m.origin[1])
     extent = (ox, ox + w * m.resolution, oy, oy + h * m.resolution)
     width, height = extent[1] - extent[0], extent[3] - extent[2]

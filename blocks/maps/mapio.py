@@ -34,10 +34,15 @@ from blocks.core.atomic import atomic_write_bytes, atomic_write_text
 from blocks.core.errors import GraphError, SemmapError
 from blocks.core.yamlsrc import line_of, load_yaml_file
 
-__all__ = ["MapError", "OccupancyMap", "occupancy_map_from_world", "read_map", "write_map"]
+__all__ = ["MapError", "OccupancyMap", "UNKNOWN_RGB", "map_rgba", "occupancy_map_from_world",
+           "read_map", "write_map"]
 
 #: Pixel value of an unknown cell (``map_saver``'s choice: p = 50/255 = 0.196).
 UNKNOWN_PIXEL = 205
+
+#: Colour (RGB) of unknown cells in the map pictures drawn with matplotlib (hybrid map,
+#: semantic map): a warm grey, so unknown is not mistaken for p = 0.5.
+UNKNOWN_RGB = (175, 160, 150)
 
 #: Longest side (pixels) below which the preview PNG is enlarged so it can be seen.
 _PREVIEW_MIN_SIDE = 400
@@ -182,6 +187,48 @@ def _preview_png(m: OccupancyMap, p: np.ndarray) -> bytes:
     if not ok:  # pragma: no cover - cv2 always encodes a uint8 BGR array
         raise RuntimeError("PNG encoding failed")
     return buf.tobytes()
+
+
+def map_rgba(m: OccupancyMap) -> np.ndarray:
+    """A picture of a map to draw under plots with ``imshow(..., origin="lower")``.
+
+    Free cells white, occupied black, uncertain cells grey (``1 - p``), unknown
+    :data:`UNKNOWN_RGB`. The picture is 8-bit RGBA, 4 bytes a cell, which
+    matplotlib draws from without converting it (a float RGB picture costs
+    24 bytes a cell, and matplotlib copies it twice more, as float64 RGBA,
+    to draw it). Shades are truncated as matplotlib truncates float colours
+    (``int(255 * v)``), so it draws the same pixels as from the float picture.
+
+    Parameters
+    ----------
+    m
+        The map (row 0 the lowest y).
+
+    Returns
+    -------
+    (H, W, 4) uint8 array
+        Row 0 the lowest y, alpha 255.
+
+    Examples
+    --------
+    >>> m = OccupancyMap(np.array([[0.0, 0.5, 1.0, np.nan]]), 0.05, (0.0, 0.0, 0.0))
+    >>> map_rgba(m)[0, :, 0]
+    array([255, 127,   0, 175], dtype=uint8)
+    """
+    p = np.asarray(m.occupancy, dtype=np.float64)
+    occupied, free, _ = m.classes()
+    shade = np.nan_to_num(p, nan=0.5)
+    np.clip(shade, 0, 1, out=shade)
+    np.subtract(1, shade, out=shade)
+    shade *= 255
+    rgba = np.empty(p.shape + (4,), dtype=np.uint8)
+    rgba[..., :3] = shade.astype(np.uint8)[..., None]
+    del shade
+    rgba[..., 3] = 255
+    rgba[free, :3] = 255
+    rgba[occupied, :3] = 0
+    rgba[np.isnan(p), :3] = UNKNOWN_RGB
+    return rgba
 
 
 def write_map(yaml_path: str | Path, m: OccupancyMap, *, preview: bool = True,

@@ -406,19 +406,14 @@ def _as_sign(obj: Any) -> tuple[str, float, float, float]:
     return (normalise_text(obj.text), float(obj.x), float(obj.y), float(obj.facing))
 
 
-def _map_rgb(m) -> tuple[np.ndarray, tuple[float, float, float, float]]:
-    """An RGB picture of an occupancy map (row 0 lowest y) and its world extent:
-    free white, occupied black, uncertain grey, unknown a cool grey (as mapio's preview)."""
-    p = np.asarray(m.occupancy, dtype=np.float64)
-    occupied, free, _ = m.classes()
-    shade = 1 - np.clip(np.nan_to_num(p, nan=0.5), 0, 1)
-    rgb = np.repeat(shade[:, :, None], 3, axis=2)
-    rgb[free] = 1.0
-    rgb[occupied] = 0.0
-    rgb[np.isnan(p)] = (175 / 255, 160 / 255, 150 / 255)
-    h, w = p.shape
+def _map_rgba(m) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """An RGBA picture of an occupancy map (row 0 lowest y, :func:`blocks.maps.mapio.map_rgba`)
+    and its world extent."""
+    from blocks.maps.mapio import map_rgba
+
+    h, w = m.shape
     ox, oy = float(m.origin[0]), float(m.origin[1])
-    return rgb, (ox, ox + w * m.resolution, oy, oy + h * m.resolution)
+    return map_rgba(m), (ox, ox + w * m.resolution, oy, oy + h * m.resolution)
 
 
 def draw_hybrid_map(occupancy_map, signs: Sequence[Mapping[str, Any]], path: str | Path, *,
@@ -462,7 +457,7 @@ def draw_hybrid_map(occupancy_map, signs: Sequence[Mapping[str, Any]], path: str
     if traj is not None and traj.ndim == 2 and len(traj):
         points += [tuple(p) for p in traj[:, :2]]
     if occupancy_map is not None:
-        rgb, extent = _map_rgb(occupancy_map)
+        rgb, extent = _map_rgba(occupancy_map)
     else:
         rgb = None
         pts = np.array(points) if points else np.zeros((1, 2))
