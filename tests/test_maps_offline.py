@@ -245,3 +245,17 @@ def test_sonar_visibility_stops_at_the_first_wall_and_stays_in_the_cone():
     along = sonar_visible(world, np.array([[1.0, 1.1, 0.0]]))  # looking down the corridor
     assert np.abs(xs[np.nonzero(along)[1]] - 1.0).max() <= 4.1  # sonar range
     assert not along[:, xs < 0.9].any()
+
+
+def test_sonar_visibility_in_chunks_equals_visibility_at_once():
+    from blocks.maps.visibility import sonar_visible
+    from sim2d.world import load_world
+    from sim2d.worlds import world_path
+
+    world = load_world(world_path("corridor"))
+    rng = np.random.default_rng(5)
+    sensors = np.column_stack([rng.uniform(0.5, 19.5, 50), rng.uniform(0.3, 1.9, 50),
+                               rng.uniform(-math.pi, math.pi, 50)])
+    whole = sonar_visible(world, sensors, chunk=len(sensors))
+    assert whole.sum() > 1000  # the cones sweep a good part of the corridor
+    assert np.array_equal(sonar_visible(world, sensors, chunk=7), whole)  # the last one short

@@ -25,7 +25,7 @@ __all__ = ["sonar_visible"]
 
 
 def sonar_visible(world: World, sensors: np.ndarray, cone_deg: float = 30.0,
-                  max_range: float = 4.0, chunk: int = 4096) -> np.ndarray:
+                  max_range: float = 4.0, chunk: int = 256) -> np.ndarray:
     """The cells of the world's grid that an ideal sonar at ``sensors`` would sweep.
 
     Parameters
@@ -36,6 +36,11 @@ def sonar_visible(world: World, sensors: np.ndarray, cone_deg: float = 30.0,
         (M, 3) true sensor poses x, y, heading in the world frame.
     cone_deg, max_range
         The sonar's cone angle (deg) and maximum range (m).
+    chunk
+        Sensors whose true ranges are found at once: :func:`sim2d.sonar.cone_ranges`
+        holds some twenty (sensors, wall capsules) float64 temporaries at a time,
+        ~11 MB for 256 sensors against 250 capsules (~175 MB for 4096), and small
+        chunks stay in cache, which is faster too.
 
     Returns
     -------
