@@ -35,6 +35,9 @@ class RunContext:
         self.metrics: dict[str, dict[str, Any]] = {}
         self.stop_reason: str | None = None
         self.outputs: list[str] = []
+        #: What blocks of this run compute once and share (the map blocks' sonar
+        #: visibility, say), so it lives and dies with the run; cleared on reset.
+        self.shared: dict[Any, Any] = {}
 
     @property
     def time(self) -> float:

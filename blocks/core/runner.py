@@ -215,6 +215,7 @@ class Runner:
         self.ctx.tick = 0
         self.ctx.stop_reason = None
         self.ctx.metrics.clear()
+        self.ctx.shared.clear()
         self.wall_time = 0.0
         for node, blk in zip(self.nodes, self.blocks):
             self._guard(node.path, blk.reset)

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from blocks.core import Block, BlockError, Param, Port, block
+from blocks.core import Block, BlockError, Param, Port, RunContext, block
 
 from .logodds import InverseSonarModel, LogOddsMap
 from .mapio import OccupancyMap, write_map
@@ -35,22 +35,19 @@ TRUTH = Port.array("float64", (3,), unit="m,m,rad", frame="world", required=Fals
                    doc="true pose, only to score against what the run could see (optional)")
 MAP_HANDLE = Port(kind="handle", doc="the map being built (snapshot() gives an OccupancyMap)")
 
-_VISIBLE_CACHE: dict[tuple, np.ndarray] = {}
-
-
-def _visible(world: Any, world_key: str, path: np.ndarray, robot: str) -> np.ndarray:
+def _visible(ctx: RunContext, world: Any, world_key: str, path: np.ndarray,
+             robot: str) -> np.ndarray:
     """The cells the run's sonar could see (an ideal sonar on the true path), computed
-    once per run for all map blocks."""
+    once per run for all map blocks (kept in ``ctx.shared``)."""
     from .features import sensor_poses_along
     from .visibility import sonar_visible
-    key = (world_key, robot, path.shape, hash(path.tobytes()))
-    if key not in _VISIBLE_CACHE:
+    key = ("sonar_visible", world_key, robot, path.shape, hash(path.tobytes()))
+    if key not in ctx.shared:
         spec = _robot(robot)
         sensors = sensor_poses_along(path, spec.sonar_mounts).reshape(-1, 3)
-        _VISIBLE_CACHE.clear()
-        _VISIBLE_CACHE[key] = sonar_visible(world, sensors, spec.sonar.cone_deg,
-                                            spec.sonar.max_range)
-    return _VISIBLE_CACHE[key]
+        ctx.shared[key] = sonar_visible(world, sensors, spec.sonar.cone_deg,
+                                        spec.sonar.max_range)
+    return ctx.shared[key]
 
 
 def _robot(model: str):
@@ -94,7 +91,8 @@ class _MapWriter(Block):
             world = load_world(world_file)
             visible = None
             if getattr(self, "_truth", None):
-                visible = _visible(world, str(world_file), np.array(self._truth), self.p.robot)
+                visible = _visible(self.ctx, world, str(world_file), np.array(self._truth),
+                                   self.p.robot)
             for name, value in score_map(m, world, visible=visible).items():
                 self.report(name, value)
 
