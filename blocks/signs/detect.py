@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -170,6 +171,11 @@ class DetectorParams:
         if not 0 <= self.min_level <= 255:
             raise ValueError(f"min_level must be in 0..255, got {self.min_level}")
 
+    @cached_property
+    def floors(self) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`level_floors` of these parameters, made once (the detector's per-frame tables)."""
+        return level_floors(self)
+
 
 DEFAULT_PARAMS = DetectorParams()
 
@@ -259,7 +265,7 @@ def detect_plates(image: np.ndarray, camera: CameraModel,
                          f"model is {camera.width}x{camera.height}")
     # the body mask (as body_mask), and the rest of it only where a candidate needs it
     hi, level = smoothed_extremes(image)
-    grey_floor, body_floor = level_floors(params)
+    grey_floor, body_floor = params.floors
     mask = _at_least(level, hi, body_floor).view(np.uint8)
     if cv2.countNonZero(mask) < params.min_area:
         return []  # no candidate can be big enough (most frames: walls, floor, no ceiling)
@@ -313,11 +319,11 @@ def components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     n, labels = cv2.connectedComponents(mask, connectivity=8)
     H, W = mask.shape
-    padded = np.zeros((H, W + 2), np.int8)
-    padded[:, 1:-1] = mask
-    step = np.diff(padded, axis=1)  # +1 at a run's first pixel, -1 just past its last
-    starts = np.flatnonzero(step == 1)
-    ends = np.flatnonzero(step == -1)
+    padded = cv2.copyMakeBorder(mask, 0, 0, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    # the value changes at a run's first pixel and just past its last: in each
+    # row (padded with zeros) and so in the whole frame, starts and ends alternate
+    steps = np.flatnonzero(cv2.bitwise_xor(padded[:, 1:], padded[:, :-1]).view(bool))
+    starts, ends = steps[0::2], steps[1::2]
     rows = starts // (W + 1)
     x0 = starts - rows * (W + 1)
     x1 = ends - rows * (W + 1)
@@ -462,7 +468,7 @@ def _fit_edge(cols: np.ndarray, v: np.ndarray, free: np.ndarray, border: float,
     line are trimmed in a few passes: where a letter touches the border the
     body's extreme pixel lies inside the plate, never outside.
     """
-    if free.sum() < max(3, 0.25 * len(cols)):
+    if np.count_nonzero(free) < max(3, 0.25 * len(cols)):
         return float(border), 0.0, 0.0, False
     u, v = cols[free].astype(np.float64), v[free]
     if not robust:
@@ -473,7 +479,7 @@ def _fit_edge(cols: np.ndarray, v: np.ndarray, free: np.ndarray, border: float,
         fit = a, b, rms = _lsq(u[keep], v[keep]) if i else _lsq(u, v)
         r = (v - (a + b * u)) * inward  # > 0: inside the plate
         new = (r <= max(1.0, 1.5 * rms)) & (r >= -max(1.0, 3.0 * rms))
-        if new.sum() < max(3, 0.3 * len(u)) or np.array_equal(new, keep):
+        if np.count_nonzero(new) < max(3, 0.3 * len(u)) or not (new ^ keep).any():
             break
         keep, fit = new, None
     return (*(fit or _lsq(u[keep], v[keep])), True)
@@ -483,7 +489,7 @@ def _fit_line(u: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
     """``v = a + b * u`` by least squares with one pass of outlier removal; (a, b, rms)."""
     a, b, rms = _lsq(u, v)
     keep = np.abs(v - (a + b * u)) <= max(1.0, 2.0 * rms)
-    if 2 <= keep.sum() < len(u):
+    if 2 <= np.count_nonzero(keep) < len(u):
         a, b, rms = _lsq(u[keep], v[keep])
     return a, b, rms
 
@@ -492,13 +498,14 @@ def _lsq(u: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
     n = len(u)
     if n < 2:
         return float(v.mean()), 0.0, 0.0
-    um, vm = u.sum() / n, v.sum() / n  # (what ndarray.mean computes, without its overhead)
+    total = np.add.reduce  # (what ndarray.mean and sum compute, without their overhead)
+    um, vm = total(u) / n, total(v) / n
     du = u - um
     denom = float(du @ du)
     b = float(du @ (v - vm)) / denom if denom > 0 else 0.0
     a = float(vm - b * um)
     r = v - a - b * u
-    return a, b, math.sqrt(float((r * r).sum()) / n)
+    return a, b, math.sqrt(float(total(r * r)) / n)
 
 
 def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, int],
@@ -561,8 +568,8 @@ def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, 
         # (rows ra <= r < rb, and per column those between the lines)
         ra = int(max(0, math.floor(float(lo_line.min()) + y + 0.5)))
         rb = int(min(H, math.ceil(float(hi_line.max()) + y + 0.5)))
-        r0 = np.clip(np.ceil(lo_line - 0.5).astype(int) + y, ra, rb)
-        r1 = np.clip(np.floor(hi_line + 0.5).astype(int) + y + 1, r0, rb)
+        r0 = np.minimum(np.maximum(np.ceil(lo_line - 0.5).astype(int) + y, ra), rb)
+        r1 = np.minimum(np.maximum(np.floor(hi_line + 0.5).astype(int) + y + 1, r0), rb)
         span = float((above(grey_sums, r1, x + cols) - above(grey_sums, r0, x + cols)).sum())
     fill = span / expected if expected > 0 else 0.0
     if not params.min_fill <= fill <= 1.0 / params.min_fill:
@@ -572,7 +579,7 @@ def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, 
     if small:
         return small
     body_level = _upper_quartile(level[y:y + h, x:x + w][blob])
-    ring_level = _ring_level(level, labels, ks, box)
+    ring_level = _ring_level(level, box)
     quad = (x + u0, x + u1, y + t0, y + t1, y + s0, y + s1)
     text_fill, text_span, text_chroma = _text(level, hi, quad, body_level,
                                               params.text_dark_ratio)
@@ -701,20 +708,19 @@ def _detection(f: dict, params: DetectorParams) -> PlateDetection:
                           score=score, clipped=clipped)
 
 
-def _ring_level(level: np.ndarray, labels: np.ndarray, ks: tuple[int, ...],
-                box: tuple[int, int, int, int]) -> float | None:
-    """Median level of a band around the blob's box (a quarter of its height wide)."""
+def _ring_level(level: np.ndarray, box: tuple[int, int, int, int]) -> float | None:
+    """Median level of a band around the blob's box (a quarter of its height wide).
+
+    The band is the grown box less the box (which holds the whole blob): the
+    rows above and below it, and the rest of the rows beside it.
+    """
     x, y, w, h = box
     H, W = level.shape
     pad = max(2, round(0.25 * h))
     xa, xb = max(0, x - pad), min(W, x + w + pad)
     ya, yb = max(0, y - pad), min(H, y + h + pad)
-    ring = np.ones((yb - ya, xb - xa), dtype=bool)
-    ring[y - ya:y - ya + h, x - xa:x - xa + w] = False
-    sub = labels[ya:yb, xa:xb]
-    for k in ks:  # (a blob may reach round its box's corners only through itself)
-        ring &= sub != k
-    values = level[ya:yb, xa:xb][ring]
+    values = np.concatenate([level[ya:y, xa:xb].ravel(), level[y + h:yb, xa:xb].ravel(),
+                             level[y:y + h, xa:x].ravel(), level[y:y + h, x + w:xb].ravel()])
     if values.size < 4:
         return None
     return _median(values)
@@ -794,7 +800,7 @@ def _text(level: np.ndarray, hi: np.ndarray, quad: tuple[float, ...], body_level
     if n_inside < 4:
         return 0.0, 0.0, 0.0
     patch = level[ya:yb, a:b + 1]
-    dark = (patch < dark_ratio * body_level) & inside
+    dark = (patch < math.ceil(dark_ratio * body_level)) & inside  # (levels are integers)
     n_dark = int(dark.sum())
     if n_dark == 0:
         return 0.0, 0.0, 0.0
