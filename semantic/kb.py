@@ -41,6 +41,7 @@ import networkx as nx
 import numpy as np
 import rdflib
 from rdflib import OWL, RDF, RDFS, XSD, Literal, URIRef
+from rdflib.compare import to_canonical_graph
 from rdflib.namespace import SKOS
 
 from blocks.core.atomic import atomic_write_text
@@ -834,6 +835,12 @@ class KnowledgeBase:
                 g.bind(prefix, ns)
             g.addN((s, p, o, g) for s, p, o in self.ontology)
             g.addN((s, p, o, g) for s, p, o in self._abox)
+        # blank nodes (the ontology's restrictions) get labels from their content, not
+        # from a random id, so a seeded run writes the same file every time
+        canonical = rdflib.Graph()
+        for prefix, ns in g.namespaces():
+            canonical.bind(prefix, ns, override=True, replace=True)
+        canonical += to_canonical_graph(g)
         path = Path(path)
-        atomic_write_text(path, g.serialize(format=format))
+        atomic_write_text(path, canonical.serialize(format=format))
         return path

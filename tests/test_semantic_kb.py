@@ -9,7 +9,8 @@ import rdflib
 from rdflib import RDF, RDFS
 
 from blocks.core.errors import SemmapError
-from semantic.kb import DEFAULT_ONTOLOGY, INDOOR, MAP, KnowledgeBase, load_ontology
+from semantic.kb import (DEFAULT_ONTOLOGY, INDOOR, MAP, KnowledgeBase, _ontology_parts,
+                         load_ontology)
 from semantic.rules import POST_RULES, PRE_RULES
 from semantic.timetable import Person, Slot, Timetable
 
@@ -224,3 +225,17 @@ def test_reasoning_is_fast_enough_to_rerun_per_sign(shared_kb):
     assert stats.incremental and stats.triples_after > stats.triples_before
     assert stats.ms_total < 500  # generous: a loaded CI machine; the benchmark reports ~tens ms
     assert "FoodPreparation" in shared_kb.place_functions("P2")
+
+
+def test_serialize_is_the_same_file_every_time(tmp_path):
+    """Each KB parses the ontology afresh (new random blank-node ids); the file must not show it."""
+    texts = []
+    for i in range(2):
+        _ontology_parts.cache_clear()  # (as a second process would: the ontology parsed again)
+        kb = KnowledgeBase()
+        kb.add_place("C", "Corridor", polygon=box(0, 5, 30, 7))
+        kb.add_sign("s0", "MANAGER", x=8.0, y=5.1, facing_deg=90, place_id="C")
+        texts.append(kb.serialize(tmp_path / f"kb{i}.ttl").read_text())
+    assert "_:" in texts[0]  # (the ontology's shared restrictions are labelled blank nodes)
+    assert texts[0] == texts[1]
+    assert "@prefix indoor:" in texts[0]
