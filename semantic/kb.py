@@ -13,7 +13,8 @@ asserted facts every time so retractions and overrides stay right:
 1. *pre rules* (:data:`semantic.rules.PRE_RULES`) on the asserted facts: signs
    type their rooms, doors make places adjacent, people get workplaces;
 2. the OWL 2 RL pass by ``reasonable`` over the ontology's axioms and the
-   facts (incremental when only facts were added since the previous pass);
+   facts (:class:`OwlPass`: the previous closure again when the axioms and facts
+   are those of the previous pass, incremental when facts were only added);
 3. *post rules* (:data:`semantic.rules.POST_RULES`) on the closure:
    connectivity, default equipment (observed objects take precedence), where
    objects belong. OWL + rules iterate if a rule feeds the reasoner.
@@ -33,7 +34,7 @@ import datetime as dt
 import re
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -53,7 +54,7 @@ from semantic.timetable import DAYS, Slot, Timetable
 from semantic.vocabulary import Vocabulary, compact, load_vocabulary
 
 __all__ = ["DEFAULT_ONTOLOGY", "INDOOR", "MAP", "KnowledgeBase", "KnowledgeBaseError",
-           "OntologyError", "ReasoningStats", "load_ontology"]
+           "OntologyError", "OwlClosure", "OwlPass", "ReasoningStats", "load_ontology"]
 
 DEFAULT_ONTOLOGY = Path(__file__).with_name("ontology") / "indoor.ttl"
 #: Names the rules and queries rely on; a swapped-in ontology must define them.
@@ -195,6 +196,88 @@ def _wkt(polygon: np.ndarray) -> str:
     return "POLYGON ((" + ", ".join(f"{x:.6g} {y:.6g}" for x, y in pts) + "))"
 
 
+@dataclass(frozen=True)
+class OwlClosure:
+    """What an OWL pass derived, split the way the knowledge base reads it.
+
+    Attributes
+    ----------
+    on_map : tuple
+        The triples about map individuals (subjects in the ``map:`` namespace):
+        the rules index these.
+    off_map : tuple
+        The rest, the ontology's own closure: it goes to the graph untouched.
+    """
+
+    on_map: tuple
+    off_map: tuple
+    _with: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def with_ontology(self, ontology: frozenset) -> frozenset:
+        """The ontology's triples and :attr:`off_map` as one set (kept per ontology: the
+        closure's terms are new objects, so the union compares them one by one)."""
+        key = id(ontology)
+        if key not in self._with:
+            self._with[key] = (ontology, ontology.union(self.off_map))
+        return self._with[key][1]
+
+
+class OwlPass:
+    """The OWL 2 RL pass by ``reasonable``, kept between reasonings.
+
+    Its closure is a function of the set of triples it is given alone (the
+    least fixpoint of the OWL 2 RL rules), so a pass given
+
+    - the same triples as last time gives the last closure again, without reasoning;
+    - a superset of them loads only the new triples into the reasoner, which
+      carries on from its closure (incremental materialisation: the same set);
+    - anything else (a fact was retracted) starts a new reasoner from scratch.
+
+    One knowledge base keeps one (facts added after :meth:`KnowledgeBase.reason`
+    reason incrementally); the live knowledge block, which builds a fresh base for
+    every new sign or object, hands the previous base's pass on, so an update that
+    only moves an object (literals, which the OWL pass is not given) costs no OWL
+    reasoning at all.
+
+    Attributes
+    ----------
+    input : frozenset
+        The triples the last pass was given (empty before the first).
+    """
+
+    def __init__(self) -> None:
+        self._reasoner: Any = None
+        self._closure: OwlClosure | None = None
+        self.input: frozenset = frozenset()
+
+    def close(self, axioms: Iterable[tuple], facts: Iterable[tuple]) -> tuple[OwlClosure, bool]:
+        """The OWL closure of ``axioms`` and ``facts`` (no literals: OWL RL ignores them here).
+
+        Returns
+        -------
+        closure : OwlClosure
+        incremental : bool
+            False when the reasoner started from scratch.
+        """
+        import reasonable
+        want = frozenset(axioms).union(facts)
+        if self._closure is not None and want == self.input:
+            return self._closure, True
+        if self._reasoner is not None and want >= self.input:
+            self._reasoner.from_graph(list(want - self.input))
+            incremental = True
+        else:
+            self._reasoner = reasonable.PyReasoner()
+            self._reasoner.from_graph(list(want))
+            incremental = False
+        self.input = want
+        closure = self._reasoner.reason()
+        self._closure = OwlClosure(
+            on_map=tuple(t for t in closure if t[0].startswith(_MAP_STR)),
+            off_map=tuple(t for t in closure if not t[0].startswith(_MAP_STR)))
+        return self._closure, incremental
+
+
 class KnowledgeBase:
     """The indoor ontology, the map's facts, and the reasoning over both.
 
@@ -205,24 +288,34 @@ class KnowledgeBase:
         ``semantic/ontology/indoor.ttl``).
     vocabulary : Vocabulary, optional
         The sign vocabulary, to classify sign texts (default: the packaged one).
+    owl : OwlPass, optional
+        The OWL pass to reason with (default: a new one). A caller that builds a
+        fresh knowledge base for every update passes the previous base's
+        :attr:`owl` on: the OWL closure then follows the facts incrementally,
+        with the same result as from scratch (see :class:`OwlPass`).
     """
 
     def __init__(self, ontology: str | Path | None = None,
-                 vocabulary: Vocabulary | None = None) -> None:
+                 vocabulary: Vocabulary | None = None, owl: OwlPass | None = None) -> None:
         self.ontology_path = Path(ontology) if ontology is not None else DEFAULT_ONTOLOGY
         parts = _ontology_parts(str(self.ontology_path.resolve()), _mtime(self.ontology_path))
         self.ontology, self.tbox, self.lexicon, self._owl_tbox, self._ontology_set = parts
         self.vocabulary = vocabulary if vocabulary is not None else load_vocabulary()
         self._abox: set[tuple] = set()  # asserted map facts
+        self._about: dict[Any, set[tuple]] = {}  # the same, by subject (replacing an id)
         self._polygons: dict[URIRef, np.ndarray] = {}
         self._slots: list[tuple[URIRef, URIRef, Any]] = []  # (slot, person, timetable Slot)
-        self._reasoner: Any = None
-        self._reasoner_input: set[tuple] = set()
+        self.owl = owl if owl is not None else OwlPass()
         self._facts: Facts | None = None
         self._graph: rdflib.Graph | None = None
         self._ctx: RuleContext | None = None
-        self._tbox_closure: list[tuple] = []
+        self._tbox_closure: tuple = ()
         self.stats: ReasoningStats | None = None
+
+    @property
+    def _reasoner_input(self) -> frozenset:
+        """What the last OWL pass was given: the ontology's axioms and the facts."""
+        return self.owl.input
 
     # ---- asserting facts -------------------------------------------------------------------------
     def _iri(self, ident: str) -> URIRef:
@@ -236,11 +329,13 @@ class KnowledgeBase:
 
     def _forget(self, subject: URIRef) -> None:
         """Drop every asserted fact about ``subject`` (re-adding an id replaces it)."""
-        self._abox = {t for t in self._abox if t[0] != subject}
+        self._abox -= self._about.pop(subject, set())
         self._polygons.pop(subject, None)
 
     def _assert(self, *triples: tuple) -> None:
         self._abox.update(triples)
+        for t in triples:
+            self._about.setdefault(t[0], set()).add(t)
         self._changed()
 
     def _class(self, name: str, kinds: set[str], what: str) -> URIRef:
@@ -261,8 +356,8 @@ class KnowledgeBase:
                                  "the ontology", file=self.ontology_path, hint=hint)
 
     def _ensure_place(self, place: URIRef) -> None:
-        if not any(t[0] == place and t[1] == RDF.type for t in self._abox):
-            self._abox.add((place, RDF.type, INDOOR.Place))
+        if not any(t[1] == RDF.type for t in self._about.get(place, ())):
+            self._assert((place, RDF.type, INDOOR.Place))
 
     def add_place(self, place_id: str, kind: str | None = None, *, name: str | None = None,
                   centroid: tuple[float, float] | None = None, polygon: Any = None,
@@ -494,7 +589,7 @@ class KnowledgeBase:
                                      hint="Re-run the semantic mapping to write it again.") from None
         kb = cls(ontology, vocabulary=vocabulary)
         facts = {t for t in g if str(t[0]).startswith(_MAP_STR)}
-        kb._abox = facts
+        kb._assert(*facts)
         for s, wkt in ((t[0], t[2]) for t in facts if t[1] == INDOOR.polygon):
             poly = _parse_wkt(str(wkt))
             if poly is not None:
@@ -528,7 +623,6 @@ class KnowledgeBase:
             ``ms_owl`` (the reasonable passes, with loading their input),
             ``ms_rules`` (pre and post rules, indexing), triple counts.
         """
-        import reasonable
         t0 = time.perf_counter()
         ctx = RuleContext(tbox=self.tbox, polygons=dict(self._polygons), lexicon=self.lexicon)
         asserted = Facts(self._abox)
@@ -541,24 +635,12 @@ class KnowledgeBase:
         while True:
             rounds += 1
             t1 = time.perf_counter()
-            want = set(self._owl_tbox) | feed
-            if self._reasoner is not None and want >= self._reasoner_input:
-                added = want - self._reasoner_input
-                incremental = True
-                if added:
-                    self._reasoner.from_graph(list(added))
-            else:
-                self._reasoner = reasonable.PyReasoner()
-                self._reasoner.from_graph(list(want))
-                incremental = False
-            self._reasoner_input = want
-            closure = self._reasoner.reason()
+            closure, incremental = self.owl.close(self._owl_tbox, feed)
             t2 = time.perf_counter()
             ms_owl += (t2 - t1) * 1e3
             # The rules read the ontology from self.tbox; index only the facts about map
             # individuals (the closure's ontology part goes to the graph untouched).
-            on_map = [t for t in closure if t[0].startswith(_MAP_STR)]
-            facts = Facts(on_map + literals)
+            facts = Facts([*closure.on_map, *literals])
             derived = R.run_rules(R.POST_RULES, facts, ctx)
             ms_rules += (time.perf_counter() - t2) * 1e3
             fed = {t for rule in R.POST_RULES if rule.feeds_owl for t in derived[rule.name]
@@ -567,9 +649,10 @@ class KnowledgeBase:
                 break
             feed |= fed
         self._facts, self._ctx, self._graph = facts, ctx, None
-        self._tbox_closure = [t for t in closure if not t[0].startswith(_MAP_STR)]
+        self._tbox_closure = closure.off_map
         before = len(self.ontology) + len(self._abox)
-        after = len(self._ontology_set | facts.triples | set(self._tbox_closure))
+        base = closure.with_ontology(self._ontology_set)
+        after = len(base) + sum(1 for t in facts.triples if t not in base)
         self.stats = ReasoningStats(ms_owl=ms_owl, ms_rules=ms_rules, triples_before=before,
                                     triples_after=after, owl_rounds=rounds,
                                     incremental=incremental)

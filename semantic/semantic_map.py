@@ -20,7 +20,7 @@ import numpy as np
 
 from blocks.maps.mapio import OccupancyMap
 
-from .kb import KnowledgeBase
+from .kb import KnowledgeBase, OwlPass
 from .places import PlaceMap, attach_signs, segment_places
 from .vocabulary import Vocabulary, load_vocabulary
 
@@ -155,7 +155,7 @@ def build_semantic_map(occupancy: OccupancyMap, signs: list[Mapping[str, Any]],
 
 def live_kb(signs: list[Mapping[str, Any]], objects: Iterable[Mapping[str, Any]] = (), *,
             ontology: str | Path | None = None, timetable: Any = None,
-            vocabulary: Vocabulary | None = None) -> KnowledgeBase:
+            vocabulary: Vocabulary | None = None, owl: OwlPass | None = None) -> KnowledgeBase:
     """The knowledge base while the robot runs, before there is a map to segment.
 
     Each read sign stands for the place it labels (``S1``, ``S2``, ... placed
@@ -168,6 +168,9 @@ def live_kb(signs: list[Mapping[str, Any]], objects: Iterable[Mapping[str, Any]]
     ----------
     signs, objects, ontology, timetable, vocabulary
         As for :func:`build_semantic_map`.
+    owl : OwlPass, optional
+        The previous live base's OWL pass (its ``owl``): this base's OWL closure
+        then follows from it incrementally, the same as from scratch.
 
     Returns
     -------
@@ -176,7 +179,7 @@ def live_kb(signs: list[Mapping[str, Any]], objects: Iterable[Mapping[str, Any]]
     """
     import math
     vocabulary = vocabulary or load_vocabulary()
-    kb = KnowledgeBase(ontology, vocabulary=vocabulary)
+    kb = KnowledgeBase(ontology, vocabulary=vocabulary, owl=owl)
     anchors = []
     for i, sign in enumerate(signs):
         text = str(sign.get("text", ""))

@@ -239,3 +239,19 @@ def test_serialize_is_the_same_file_every_time(tmp_path):
     assert "_:" in texts[0]  # (the ontology's shared restrictions are labelled blank nodes)
     assert texts[0] == texts[1]
     assert "@prefix indoor:" in texts[0]
+
+
+def test_re_adding_an_id_replaces_its_facts_and_keeps_the_others():
+    kb = KnowledgeBase()
+    kb.add_place("A", "Kitchen", name="KITCHEN", centroid=(1.0, 2.0))
+    kb.add_object("o", "Shredder", x=1.0, y=1.0, place_id="B")  # B created as a Place
+    kb.add_place("A", "MailRoom", centroid=(3.0, 4.0))
+    kb.add_sign("s", "LAB", x=0.0, y=0.0, place_id="B")  # B already typed: not again
+    about_a = {t for t in kb._abox if t[0] == MAP.A}
+    assert about_a == {(MAP.A, RDF.type, INDOOR.MailRoom),
+                       (MAP.A, INDOOR.x, rdflib.Literal(3.0, datatype=rdflib.XSD.double)),
+                       (MAP.A, INDOOR.y, rdflib.Literal(4.0, datatype=rdflib.XSD.double))}
+    assert {t for t in kb._abox if t[0] == MAP.B} == {(MAP.B, RDF.type, INDOOR.Place)}
+    kb.add_object("o", "Printer", x=2.0, y=2.0)
+    assert {t[2] for t in kb._abox if t[0] == MAP.o and t[1] == RDF.type} == {INDOOR.Printer}
+    assert kb.place_kind("A") == "MailRoom" and kb.place_kind("B") == "Laboratory"

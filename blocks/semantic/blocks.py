@@ -70,6 +70,7 @@ class Knowledge(Block):
         self._objects: Any = None
         self._map: Any = None
         self._seen = (-1, -1)
+        self._owl: Any = None  # the last live base's OWL pass, handed on to the next one
         self._reason_ms: list[float] = []
         self._path: list[np.ndarray] = []
 
@@ -92,7 +93,8 @@ class Knowledge(Block):
             return
         from semantic.semantic_map import live_kb
         kb = live_kb(sign_list, object_list, ontology=self.p.ontology or None,
-                     timetable=self._timetable, vocabulary=self._vocabulary)
+                     timetable=self._timetable, vocabulary=self._vocabulary, owl=self._owl)
+        self._owl = kb.owl
         t0 = time.perf_counter()
         kb.reason()
         self._reason_ms.append((time.perf_counter() - t0) * 1e3)
