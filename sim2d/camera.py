@@ -1408,6 +1408,7 @@ class _Canvas:
         self.spare = (np.empty((*size, 3), f32), np.empty((*size, 3), f32))
         self.half = np.empty((height // 2, width // 2, 3), f32)
         self.small = np.empty((height // 2, width // 2, 3), f32)
+        self.work = np.empty((*size, 3), f32)  # a blur's box, before it is blended
 
 
 @dataclass(frozen=True)
@@ -1588,33 +1589,164 @@ def _depth_blur(img: np.ndarray, sigma: np.ndarray, canvas: _Canvas) -> np.ndarr
     half resolution (they keep no detail a full-resolution blur would).
     ``sigma`` is capped in place; the result is one of ``canvas.spare`` (or
     ``img`` itself if no pixel needs blurring).
+
+    Each blur is blended in with weight ``frac`` (0 up to the level below,
+    1 from its own level), so it is only needed in the box of pixels whose
+    sigma passes the level below (:func:`_blur_boxes`): the blur runs on that
+    box and its kernel's margin, and the blend on that box. Outside the box
+    ``cv2.blendLinear`` with weights 1 and 0 divides by ``1 + 1e-5``, which is
+    done there directly, so the image is the same to the bit as blurring the
+    whole frame at every level (most frames need the larger blurs only around
+    the horizon, a third of the frame or less).
     """
     f32 = np.float32
     sigma = np.minimum(sigma, f32(BLUR_LEVELS[-1]), out=sigma)
-    top = next((k for k, level in enumerate(BLUR_LEVELS) if level >= float(sigma.max())),
-               len(BLUR_LEVELS) - 1)
+    boxes, boxed = _blur_boxes(sigma)
     out = img
-    half = None
-    for k in range(1, top + 1):
+    half_box = None  # the part of canvas.half made so far
+    for k, box in enumerate(boxes, start=1):
         level, lo = BLUR_LEVELS[k], BLUR_LEVELS[k - 1]
-        blurred = canvas.spare[k % 2]  # not out, which is the other one (or img)
+        dst = canvas.spare[k % 2]  # not out, which is the other one (or img)
+        r0, r1, c0, c1 = box
+        if box != (0, img.shape[0], 0, img.shape[1]):
+            np.divide(out, _BLEND_DEN, out=dst)  # frac 0: what blendLinear gives there
         if level >= 1.6:
-            if half is None:
-                half = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), dst=canvas.half,
-                                  interpolation=cv2.INTER_AREA)
-            # the 2x2 box average already blurred by ~0.5 px (full resolution)
-            small = _gaussian_blur(half, math.sqrt(level ** 2 - 0.25) / 2, canvas.small)
-            blurred = cv2.resize(small, (img.shape[1], img.shape[0]), dst=blurred,
-                                 interpolation=cv2.INTER_LINEAR)
+            if half_box is None:  # the union of what the half-resolution levels need
+                half_box = _union([_half_source(b, BLUR_LEVELS[j + 1], img.shape, boxed)
+                                   for j, b in enumerate(boxes) if BLUR_LEVELS[j + 1] >= 1.6])
+                a0, a1, b0, b1 = half_box
+                source = img[2 * a0:2 * a1, 2 * b0:2 * b1] if boxed else img
+                cv2.resize(source, (b1 - b0, a1 - a0), dst=canvas.half[a0:a1, b0:b1],
+                           interpolation=cv2.INTER_AREA)
+            blurred = _half_blur(level, box, canvas, boxed)
         else:
-            blurred = _gaussian_blur(img, level, blurred)
+            blurred = _box_blur(img, level, box, canvas.work)
         # piecewise-linear in sigma: pixels past this level take it whole
-        frac = np.subtract(sigma, f32(lo), out=canvas.frac)
+        frac = np.subtract(sigma[r0:r1, c0:c1], f32(lo), out=canvas.frac[r0:r1, c0:c1])
         frac *= f32(1.0 / (level - lo))
         np.clip(frac, 0, 1, out=frac)
-        keep = np.subtract(f32(1), frac, out=canvas.keep)
-        out = cv2.blendLinear(out, blurred, keep, frac, dst=blurred)  # pixel by pixel: in place
+        keep = np.subtract(f32(1), frac, out=canvas.keep[r0:r1, c0:c1])
+        cv2.blendLinear(out[r0:r1, c0:c1], blurred, keep, frac, dst=dst[r0:r1, c0:c1])
+        out = dst
     return out
+
+
+_BLEND_DEN = np.float32(1) + np.float32(1e-5)  # cv2.blendLinear's divisor for weights 1, 0
+_BLUR_ALIGN = 16  # px: box columns start and end on multiples of this (see _blur_boxes)
+
+
+def _blur_boxes(sigma: np.ndarray) -> tuple[list[tuple[int, int, int, int]], bool]:
+    """The box ``(r0, r1, c0, c1)`` of pixels each level of ``BLUR_LEVELS`` blends into
+    (those whose ``sigma`` passes the level below), up to the first level no sigma passes;
+    and whether the frame is boxed at all.
+
+    The columns are widened to multiples of ``_BLUR_ALIGN`` px, so OpenCV
+    runs the same vector code on a box as on the whole frame (no scalar tail
+    loops where the frame had none); frames whose width is not such a
+    multiple, or whose height or width is odd (the half-resolution levels
+    scale by exactly 2), blend every level over the whole frame.
+    """
+    H, W = sigma.shape
+    peak = float(sigma.max())
+    top = next((k for k, level in enumerate(BLUR_LEVELS) if level >= peak),
+               len(BLUR_LEVELS) - 1)
+    boxed = W % (2 * _BLUR_ALIGN) == 0 and H % 2 == 0
+    boxes = [(0, H, 0, W)] * top  # the first level's box is (nearly) always the whole frame
+    if boxed and top > 1:
+        row_max, col_max = sigma.max(axis=1), sigma.max(axis=0)
+        for k in range(2, top + 1):
+            lo = BLUR_LEVELS[k - 1]
+            rows, cols = np.flatnonzero(row_max > lo), np.flatnonzero(col_max > lo)
+            c0 = int(cols[0]) // _BLUR_ALIGN * _BLUR_ALIGN
+            c1 = min(W, -(-(int(cols[-1]) + 1) // _BLUR_ALIGN) * _BLUR_ALIGN)
+            boxes[k - 1] = (int(rows[0]), int(rows[-1]) + 1, c0, c1)
+    return boxes, boxed
+
+
+def _grow(box: tuple[int, int, int, int], margin: int, shape: tuple[int, ...],
+          align: int = 1) -> tuple[int, int, int, int]:
+    """``box`` widened by ``margin`` on each side within ``shape``, its columns to multiples
+    of ``align``."""
+    r0, r1, c0, c1 = box
+    H, W = shape[:2]
+    c0 = max(0, c0 - margin) // align * align
+    c1 = min(W, -(-(c1 + margin) // align) * align)
+    return max(0, r0 - margin), min(H, r1 + margin), c0, c1
+
+
+def _union(boxes: list[tuple[int, int, int, int]]) -> tuple[int, int, int, int]:
+    return (min(b[0] for b in boxes), max(b[1] for b in boxes),
+            min(b[2] for b in boxes), max(b[3] for b in boxes))
+
+
+def _kernel_radius(sigma: float) -> int:
+    """Half the size of :func:`_gaussian_blur`'s kernel (px)."""
+    return (int(np.rint(8 * sigma + 1)) | 1) // 2
+
+
+def _box_blur(img: np.ndarray, sigma: float, box: tuple[int, int, int, int],
+              work: np.ndarray) -> np.ndarray:
+    """The full-resolution blur of ``img`` inside ``box`` (a view into ``work``), as the
+    whole frame's blur has it there: the box is blurred with the kernel's margin around
+    it (the margin's own pixels, reflected at the frame's edges only, are dropped)."""
+    r0, r1, c0, c1 = box
+    g0, g1, h0, h1 = _grow(box, _kernel_radius(sigma), img.shape, _BLUR_ALIGN)
+    blurred = _gaussian_blur(img[g0:g1, h0:h1], sigma, _work_view(work, (g1 - g0, h1 - h0, 3)))
+    return blurred[r0 - g0:r1 - g0, c0 - h0:c1 - h0]
+
+
+def _half_source(box: tuple[int, int, int, int], level: float, shape: tuple[int, ...],
+                 boxed: bool = True) -> tuple[int, int, int, int]:
+    """The half-resolution pixels a half-resolution blur at ``level`` needs for ``box``
+    (full resolution): those the upsampling reads, and the kernel's margin round them
+    (all of them in a frame that is not boxed)."""
+    if not boxed:
+        return 0, shape[0] // 2, 0, shape[1] // 2
+    up = _half_up(box, shape)
+    return _grow(up, _kernel_radius(_half_sigma(level)), (shape[0] // 2, shape[1] // 2),
+                 _BLUR_ALIGN)
+
+
+def _half_up(box: tuple[int, int, int, int], shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+    """The half-resolution pixels a 2x INTER_LINEAR upsampling reads for ``box``: full
+    row ``y`` reads half rows ``y // 2 - 1`` to ``y // 2 + 1`` (so do columns)."""
+    r0, r1, c0, c1 = box
+    return _grow((r0 // 2, (r1 - 1) // 2 + 1, c0 // 2, (c1 - 1) // 2 + 1), 1,
+                 (shape[0] // 2, shape[1] // 2), _BLUR_ALIGN)
+
+
+def _half_sigma(level: float) -> float:
+    """The half-resolution sigma of a blur of ``level`` px (full resolution): the 2x2 box
+    average already blurred by ~0.5 px."""
+    return math.sqrt(level ** 2 - 0.25) / 2
+
+
+def _half_blur(level: float, box: tuple[int, int, int, int], canvas: _Canvas,
+               boxed: bool = True) -> np.ndarray:
+    """The half-resolution blur at ``level`` inside ``box`` (full resolution; a view into
+    ``canvas.work``), from ``canvas.half`` (the frame's 2x2 averages, made where
+    :func:`_half_source` says): blurred, then upsampled by INTER_LINEAR, as the whole
+    frame's would be there (the whole frame, in a frame that is not boxed)."""
+    full = canvas.work.shape
+    if not boxed:
+        small = _gaussian_blur(canvas.half, _half_sigma(level), canvas.small)
+        return cv2.resize(small, (full[1], full[0]), dst=canvas.work,
+                          interpolation=cv2.INTER_LINEAR)
+    u0, u1, v0, v1 = up = _half_up(box, full)
+    g0, g1, h0, h1 = _grow(up, _kernel_radius(_half_sigma(level)), canvas.half.shape,
+                           _BLUR_ALIGN)
+    small = _gaussian_blur(canvas.half[g0:g1, h0:h1], _half_sigma(level),
+                           _work_view(canvas.small, (g1 - g0, h1 - h0, 3)))
+    big = cv2.resize(small[u0 - g0:u1 - g0, v0 - h0:v1 - h0], (2 * (v1 - v0), 2 * (u1 - u0)),
+                     dst=_work_view(canvas.work, (2 * (u1 - u0), 2 * (v1 - v0), 3)),
+                     interpolation=cv2.INTER_LINEAR)
+    r0, r1, c0, c1 = box
+    return big[r0 - 2 * u0:r1 - 2 * u0, c0 - 2 * v0:c1 - 2 * v0]
+
+
+def _work_view(buffer: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """A C-contiguous array of ``shape`` over the start of ``buffer`` (no allocation)."""
+    return buffer.reshape(-1)[:math.prod(shape)].reshape(shape)
 
 
 def _gaussian_blur(img: np.ndarray, sigma: float, dst: np.ndarray | None = None) -> np.ndarray:
