@@ -16,6 +16,7 @@ from sim2d.camera import (
     CameraSpec,
     Walls,
     BLUR_LEVELS,
+    _angle_span,
     _Canvas,
     _blur_boxes,
     _depth_blur,
@@ -790,3 +791,22 @@ def test_blur_boxes_hold_every_pixel_that_blends_each_level():
             rows = np.flatnonzero(passing.any(axis=1))
             assert (r0, r1) == (rows[0], rows[-1] + 1)
             assert c0 % 16 == 0 and (c1 % 16 == 0 or c1 == 320)
+
+
+def test_angle_span_is_the_wrapped_extremes_of_any_rays():
+    """The wedge of a cast is the least and greatest ray angle relative to the first,
+    wrapped by np.angle(np.exp(1j * a)); for sorted rays only the ends are wrapped, which
+    must give the same two floats as wrapping them all, and any other rays wrap them all."""
+    rng = np.random.default_rng(7)
+
+    def wrapped_all(angles):
+        rel = np.angle(np.exp(1j * (angles - angles[0])))
+        return float(rel.min()), float(rel.max())
+
+    for _ in range(3000):
+        f = focal_length(SPEC, rng.uniform(1.0, 10.0))
+        columns = rng.uniform(-50, 50) + np.arctan2(159.5 - np.arange(320.0), f)
+        shuffled = rng.permutation(columns)
+        wide = rng.uniform(-7, 7) + np.sort(rng.uniform(0, rng.uniform(0.1, 7), 50))
+        for angles in (columns, columns[::-1], shuffled, wide, columns[:1], columns[:2]):
+            assert _angle_span(angles) == wrapped_all(angles)
