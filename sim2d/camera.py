@@ -402,7 +402,7 @@ def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
         ok = t_face > 0
         ok &= s_face >= s_lo.astype(f32)
         ok &= s_face <= s_hi.astype(f32)
-        np.copyto(t_face, f32(np.inf), where=~ok)
+        np.copyto(t_face, f32(np.inf), where=np.logical_not(ok, out=ok))
         best = np.argmin(t_face, axis=1)
         t_best = t_face[rows, best]
         # |cos| only where it is needed, as it would be everywhere
@@ -1344,8 +1344,8 @@ class CameraRenderer:
                 _draw_object(img, depth, view, spec)
             else:
                 _draw_plate(img, depth, view, spec)
-        # range-dependent blur, then noise
-        sigma = np.minimum(depth, f32(1e3), out=canvas.sigma)
+        # range-dependent blur (the depths, no longer needed, become the sigmas), then noise
+        sigma = np.minimum(depth, f32(1e3), out=depth)
         sigma *= f32(spec.blur_per_m)
         sigma /= f32(shot.zoom)
         img = _depth_blur(img, sigma, canvas)
@@ -1423,7 +1423,7 @@ class _Canvas:
 
     def __init__(self, height: int, width: int) -> None:
         f32, size = np.float32, (height, width)
-        self.depth, self.sigma, self.frac, self.keep = (np.empty(size, f32) for _ in range(4))
+        self.depth, self.frac, self.keep = (np.empty(size, f32) for _ in range(3))
         self.img = np.empty((*size, 3), f32)
         # the blurs (each blended in place with the last) and then the noise take turns
         self.spare = (np.empty((*size, 3), f32), np.empty((*size, 3), f32))
@@ -1598,7 +1598,9 @@ def _warp_texture(img: np.ndarray, depth: np.ndarray, levels: tuple[np.ndarray, 
     region = img[y0:y1, x0:x1]
     a = alpha[..., None]
     region *= 1.0 - a
-    region += a * plate.astype(np.float32) * np.float32(shade)
+    shaded = np.multiply(a, plate)  # float32, as a * plate.astype(np.float32)
+    shaded *= np.float32(shade)
+    region += shaded
     depth[y0:y1, x0:x1] = np.where(alpha > 0.5, np.float32(depth_value), depth[y0:y1, x0:x1])
 
 
@@ -1640,8 +1642,12 @@ def _depth_blur(img: np.ndarray, sigma: np.ndarray, canvas: _Canvas) -> np.ndarr
         else:
             blurred = _box_blur(img, level, box, dst)
         # piecewise-linear in sigma: pixels past this level take it whole
-        frac = np.subtract(sigma[r0:r1, c0:c1], f32(lo), out=canvas.frac[r0:r1, c0:c1])
-        frac *= f32(1.0 / (level - lo))
+        frac = canvas.frac[r0:r1, c0:c1]
+        if lo:
+            np.subtract(sigma[r0:r1, c0:c1], f32(lo), out=frac)
+            frac *= f32(1.0 / (level - lo))
+        else:  # sigma - 0 is sigma, to the bit
+            np.multiply(sigma[r0:r1, c0:c1], f32(1.0 / (level - lo)), out=frac)
         np.clip(frac, 0, 1, out=frac)
         keep = np.subtract(f32(1), frac, out=canvas.keep[r0:r1, c0:c1])
         cv2.blendLinear(out[r0:r1, c0:c1], blurred, keep, frac, dst=blurred)  # in place
