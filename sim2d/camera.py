@@ -372,15 +372,21 @@ def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
     their ends relative to the origin, ``end_ids`` their ids from :class:`Walls` (or None
     to find the shared ends here)."""
     n_rays = angles.shape[0]
-    ax, ay, bx, by = rel.T
+    # x and y side by side, (2, S) each: the same arithmetic in half the numpy calls
+    a = np.ascontiguousarray(rel[:, 0:2].T)
+    ax, ay = a
     r = seg[:, 4]
-    ex, ey = bx - ax, by - ay
+    e = rel[:, 2:4].T - a
+    ex, ey = e
     length = np.hypot(ex, ey)
     has_length = length > 1e-9
     inv_len = np.where(has_length, 1.0 / np.where(has_length, length, 1.0), 0.0)
-    nx, ny = -ey * inv_len, ex * inv_len  # unit normal (left of a -> b)
+    normal = e[::-1] * inv_len  # unit normal (left of a -> b): -ey / len, ex / len
+    np.negative(normal[0], out=normal[0])
+    nx, ny = normal
     side = np.where(-(ax * nx + ay * ny) >= 0, 1.0, -1.0)  # the face towards the origin
-    qx, qy = ax + side * r * nx, ay + side * r * ny
+    q = a + side * r * normal
+    qx, qy = q
     shared, caps = _shared_ends(seg, rel, has_length, end_ids)
     # (and 10 um more everywhere, so float32 rounding opens no pinholes at joints)
     s_lo = np.where(shared[0], -r * inv_len, 0.0) - 1e-5 * inv_len
@@ -388,7 +394,7 @@ def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
     s_lo[~has_length], s_hi[~has_length] = 2.0, -1.0  # no face for posts
     f32 = np.float32
     dx, dy = np.cos(angles).astype(f32)[:, None], np.sin(angles).astype(f32)[:, None]
-    ex32, ey32, qx32, qy32 = (v.astype(f32) for v in (ex, ey, qx, qy))
+    (ex32, ey32), (qx32, qy32) = e.astype(f32), q.astype(f32)
     rows = np.arange(n_rays)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         # faces: t*d = q + s*e
@@ -444,9 +450,9 @@ def _cull(rel: np.ndarray, radius: np.ndarray, angles: np.ndarray) -> np.ndarray
     px, py = rel[:, 0::2], rel[:, 1::2]  # (S, 2): both ends
     x, y = c * px + s * py, -s * px + c * py  # in the wedge's frame
     limit = -(radius + 1e-4)[:, None]
-    out_left = (x * sh - y * ch < limit).all(axis=1)
-    out_right = (x * sh + y * ch < limit).all(axis=1)
-    return ~(out_left | out_right)
+    xs, yc = x * sh, y * ch
+    out_left, out_right = xs - yc < limit, xs + yc < limit  # (S, 2): each end
+    return ~((out_left[:, 0] & out_left[:, 1]) | (out_right[:, 0] & out_right[:, 1]))
 
 
 def _angle_span(angles: np.ndarray) -> tuple[float, float]:
