@@ -372,15 +372,21 @@ def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
     their ends relative to the origin, ``end_ids`` their ids from :class:`Walls` (or None
     to find the shared ends here)."""
     n_rays = angles.shape[0]
-    ax, ay, bx, by = rel.T
+    # x and y side by side, (2, S) each: the same arithmetic in half the numpy calls
+    a = np.ascontiguousarray(rel[:, 0:2].T)
+    ax, ay = a
     r = seg[:, 4]
-    ex, ey = bx - ax, by - ay
+    e = rel[:, 2:4].T - a
+    ex, ey = e
     length = np.hypot(ex, ey)
     has_length = length > 1e-9
     inv_len = np.where(has_length, 1.0 / np.where(has_length, length, 1.0), 0.0)
-    nx, ny = -ey * inv_len, ex * inv_len  # unit normal (left of a -> b)
+    normal = e[::-1] * inv_len  # unit normal (left of a -> b): -ey / len, ex / len
+    np.negative(normal[0], out=normal[0])
+    nx, ny = normal
     side = np.where(-(ax * nx + ay * ny) >= 0, 1.0, -1.0)  # the face towards the origin
-    qx, qy = ax + side * r * nx, ay + side * r * ny
+    q = a + side * r * normal
+    qx, qy = q
     shared, caps = _shared_ends(seg, rel, has_length, end_ids)
     # (and 10 um more everywhere, so float32 rounding opens no pinholes at joints)
     s_lo = np.where(shared[0], -r * inv_len, 0.0) - 1e-5 * inv_len
@@ -388,7 +394,7 @@ def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
     s_lo[~has_length], s_hi[~has_length] = 2.0, -1.0  # no face for posts
     f32 = np.float32
     dx, dy = np.cos(angles).astype(f32)[:, None], np.sin(angles).astype(f32)[:, None]
-    ex32, ey32, qx32, qy32 = (v.astype(f32) for v in (ex, ey, qx, qy))
+    (ex32, ey32), (qx32, qy32) = e.astype(f32), q.astype(f32)
     rows = np.arange(n_rays)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         # faces: t*d = q + s*e
@@ -402,7 +408,7 @@ def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
         ok = t_face > 0
         ok &= s_face >= s_lo.astype(f32)
         ok &= s_face <= s_hi.astype(f32)
-        np.copyto(t_face, f32(np.inf), where=~ok)
+        np.copyto(t_face, f32(np.inf), where=np.logical_not(ok, out=ok))
         best = np.argmin(t_face, axis=1)
         t_best = t_face[rows, best]
         # |cos| only where it is needed, as it would be everywhere
@@ -434,8 +440,7 @@ def _cull(rel: np.ndarray, radius: np.ndarray, angles: np.ndarray) -> np.ndarray
     """Which capsules (ends ``rel`` relative to the rays' origin, (S, 4)) are not wholly
     outside the wedge the rays span (S,) bool; None (keep all) when the wedge is a half
     turn or more."""
-    rel_angles = np.angle(np.exp(1j * (angles - angles[0])))
-    lo, hi = float(rel_angles.min()), float(rel_angles.max())
+    lo, hi = _angle_span(angles)
     half = (hi - lo) / 2
     if half >= math.pi / 2 - 1e-3:
         return None
@@ -445,9 +450,28 @@ def _cull(rel: np.ndarray, radius: np.ndarray, angles: np.ndarray) -> np.ndarray
     px, py = rel[:, 0::2], rel[:, 1::2]  # (S, 2): both ends
     x, y = c * px + s * py, -s * px + c * py  # in the wedge's frame
     limit = -(radius + 1e-4)[:, None]
-    out_left = (x * sh - y * ch < limit).all(axis=1)
-    out_right = (x * sh + y * ch < limit).all(axis=1)
-    return ~(out_left | out_right)
+    xs, yc = x * sh, y * ch
+    out_left, out_right = xs - yc < limit, xs + yc < limit  # (S, 2): each end
+    return ~((out_left[:, 0] & out_left[:, 1]) | (out_right[:, 0] & out_right[:, 1]))
+
+
+def _angle_span(angles: np.ndarray) -> tuple[float, float]:
+    """The least and greatest of ``angles`` relative to the first, each wrapped into
+    (-pi, pi] as ``np.angle(np.exp(1j * a))`` wraps it.
+
+    Rays in strictly monotonic order over less than 3 rad (a camera's columns, or one
+    ray) have them at their ends, so only the ends are wrapped (the wrap moves an angle
+    by a few ulp, far less than the rays' spacing): the same two numbers, for a
+    fifth of the work.
+    """
+    rel = angles - angles[0]
+    if len(rel) == 1:
+        return 0.0, 0.0  # the wrap of exp(0j)
+    steps = np.diff(rel)
+    if abs(rel[-1]) < 3.0 and ((steps < -1e-9).all() or (steps > 1e-9).all()):
+        rel = rel[[0, -1]]
+    wrapped = np.angle(np.exp(1j * rel))
+    return float(wrapped.min()), float(wrapped.max())
 
 
 def _end_keys(seg: np.ndarray) -> np.ndarray:
@@ -470,22 +494,25 @@ def _shared_ends(seg: np.ndarray, rel: np.ndarray, has_length: np.ndarray,
     zero-length segments (posts).
     """
     n = len(seg)
-    valid = np.broadcast_to(has_length, (2, n))
+    valid = np.concatenate((has_length, has_length))  # (2S,): a ends, then b ends
     if end_ids is None:
         keys = _end_keys(seg)
-        _, inverse, counts = np.unique(np.where(valid.ravel(), keys, -1 - np.arange(2 * n)),
+        _, inverse, counts = np.unique(np.where(valid, keys, -1 - np.arange(2 * n)),
                                        return_inverse=True, return_counts=True)
-        shared = (counts[inverse] > 1).reshape(2, n) & valid
+        shared = (counts[inverse] > 1).reshape(2, n) & has_length
     else:  # how many ends with a face share each id
-        shared = (np.bincount(end_ids.ravel(), weights=valid.ravel())[end_ids] > 1) & valid
+        shared = (np.bincount(end_ids.ravel(), weights=valid)[end_ids] > 1) & has_length
     radius = seg[:, 4]
-    free = valid & ~shared & (radius > 0)
-    posts = ~has_length & (radius > 0)
-    ends = rel.reshape(n, 2, 2).transpose(1, 0, 2)  # (2, S, 2): a's, b's
-    caps = np.empty((int(free.sum()) + int(posts.sum()), 3))
-    k = len(caps) - int(posts.sum())
-    caps[:k, :2], caps[:k, 2] = ends[free], np.broadcast_to(radius, (2, n))[free]
-    caps[k:, :2], caps[k:, 2] = rel[posts, :2], radius[posts]
+    round_end = radius > 0
+    free = (~shared & (has_length & round_end)).ravel()  # (2S,)
+    posts = ~has_length & round_end
+    n_free, n_posts = int(np.count_nonzero(free)), int(np.count_nonzero(posts))
+    caps = np.empty((n_free + n_posts, 3))
+    if n_free:
+        ends = rel.reshape(n, 2, 2).transpose(1, 0, 2).reshape(2 * n, 2)  # a's, then b's
+        caps[:n_free, :2], caps[:n_free, 2] = ends[free], np.concatenate((radius, radius))[free]
+    if n_posts:
+        caps[n_free:, :2], caps[n_free:, 2] = rel[posts, :2], radius[posts]
     return shared, caps
 
 
@@ -1323,8 +1350,8 @@ class CameraRenderer:
                 _draw_object(img, depth, view, spec)
             else:
                 _draw_plate(img, depth, view, spec)
-        # range-dependent blur, then noise
-        sigma = np.minimum(depth, f32(1e3), out=canvas.sigma)
+        # range-dependent blur (the depths, no longer needed, become the sigmas), then noise
+        sigma = np.minimum(depth, f32(1e3), out=depth)
         sigma *= f32(spec.blur_per_m)
         sigma /= f32(shot.zoom)
         img = _depth_blur(img, sigma, canvas)
@@ -1402,7 +1429,7 @@ class _Canvas:
 
     def __init__(self, height: int, width: int) -> None:
         f32, size = np.float32, (height, width)
-        self.depth, self.sigma, self.frac, self.keep = (np.empty(size, f32) for _ in range(4))
+        self.depth, self.frac, self.keep = (np.empty(size, f32) for _ in range(3))
         self.img = np.empty((*size, 3), f32)
         # the blurs (each blended in place with the last) and then the noise take turns
         self.spare = (np.empty((*size, 3), f32), np.empty((*size, 3), f32))
@@ -1577,7 +1604,9 @@ def _warp_texture(img: np.ndarray, depth: np.ndarray, levels: tuple[np.ndarray, 
     region = img[y0:y1, x0:x1]
     a = alpha[..., None]
     region *= 1.0 - a
-    region += a * plate.astype(np.float32) * np.float32(shade)
+    shaded = np.multiply(a, plate)  # float32, as a * plate.astype(np.float32)
+    shaded *= np.float32(shade)
+    region += shaded
     depth[y0:y1, x0:x1] = np.where(alpha > 0.5, np.float32(depth_value), depth[y0:y1, x0:x1])
 
 
@@ -1588,33 +1617,179 @@ def _depth_blur(img: np.ndarray, sigma: np.ndarray, canvas: _Canvas) -> np.ndarr
     half resolution (they keep no detail a full-resolution blur would).
     ``sigma`` is capped in place; the result is one of ``canvas.spare`` (or
     ``img`` itself if no pixel needs blurring).
+
+    Each blur is blended in with weight ``frac`` (0 up to the level below,
+    1 from its own level), so it is only needed in the box of pixels whose
+    sigma passes the level below (:func:`_blur_boxes`): the blur runs on that
+    box and its kernel's margin, and the blend on that box. Outside the box
+    ``cv2.blendLinear`` with weights 1 and 0 divides by ``1 + 1e-5``, which is
+    done there directly, so the image is the same to the bit as blurring the
+    whole frame at every level (most frames need the larger blurs only around
+    the horizon, a third of the frame or less).
     """
     f32 = np.float32
     sigma = np.minimum(sigma, f32(BLUR_LEVELS[-1]), out=sigma)
-    top = next((k for k, level in enumerate(BLUR_LEVELS) if level >= float(sigma.max())),
-               len(BLUR_LEVELS) - 1)
+    boxes, boxed = _blur_boxes(sigma)
     out = img
-    half = None
-    for k in range(1, top + 1):
+    half_box = None  # the part of canvas.half made so far
+    for k, box in enumerate(boxes, start=1):
         level, lo = BLUR_LEVELS[k], BLUR_LEVELS[k - 1]
-        blurred = canvas.spare[k % 2]  # not out, which is the other one (or img)
+        dst = canvas.spare[k % 2]  # not out, which is the other one (or img)
+        r0, r1, c0, c1 = box
         if level >= 1.6:
-            if half is None:
-                half = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), dst=canvas.half,
-                                  interpolation=cv2.INTER_AREA)
-            # the 2x2 box average already blurred by ~0.5 px (full resolution)
-            small = _gaussian_blur(half, math.sqrt(level ** 2 - 0.25) / 2, canvas.small)
-            blurred = cv2.resize(small, (img.shape[1], img.shape[0]), dst=blurred,
-                                 interpolation=cv2.INTER_LINEAR)
+            if half_box is None:  # the union of what the half-resolution levels need
+                half_box = _union([_half_source(b, BLUR_LEVELS[j + 1], img.shape, boxed)
+                                   for j, b in enumerate(boxes) if BLUR_LEVELS[j + 1] >= 1.6])
+                a0, a1, b0, b1 = half_box
+                source = img[2 * a0:2 * a1, 2 * b0:2 * b1] if boxed else img
+                cv2.resize(source, (b1 - b0, a1 - a0), dst=canvas.half[a0:a1, b0:b1],
+                           interpolation=cv2.INTER_AREA)
+            blurred = _half_blur(level, box, canvas, dst, boxed)
         else:
-            blurred = _gaussian_blur(img, level, blurred)
+            blurred = _box_blur(img, level, box, dst)
         # piecewise-linear in sigma: pixels past this level take it whole
-        frac = np.subtract(sigma, f32(lo), out=canvas.frac)
-        frac *= f32(1.0 / (level - lo))
+        frac = canvas.frac[r0:r1, c0:c1]
+        if lo:
+            np.subtract(sigma[r0:r1, c0:c1], f32(lo), out=frac)
+            frac *= f32(1.0 / (level - lo))
+        else:  # sigma - 0 is sigma, to the bit
+            np.multiply(sigma[r0:r1, c0:c1], f32(1.0 / (level - lo)), out=frac)
         np.clip(frac, 0, 1, out=frac)
-        keep = np.subtract(f32(1), frac, out=canvas.keep)
-        out = cv2.blendLinear(out, blurred, keep, frac, dst=blurred)  # pixel by pixel: in place
+        keep = np.subtract(f32(1), frac, out=canvas.keep[r0:r1, c0:c1])
+        cv2.blendLinear(out[r0:r1, c0:c1], blurred, keep, frac, dst=blurred)  # in place
+        for part in _outside(box, img.shape):  # frac 0: what blendLinear gives there
+            np.divide(out[part], _BLEND_DEN, out=dst[part])
+        out = dst
     return out
+
+
+_BLEND_DEN = np.float32(1) + np.float32(1e-5)  # cv2.blendLinear's divisor for weights 1, 0
+_BLUR_ALIGN = 16  # px: box columns start and end on multiples of this (see _blur_boxes)
+
+
+def _blur_boxes(sigma: np.ndarray) -> tuple[list[tuple[int, int, int, int]], bool]:
+    """The box ``(r0, r1, c0, c1)`` of pixels each level of ``BLUR_LEVELS`` blends into
+    (those whose ``sigma`` passes the level below), up to the first level no sigma passes;
+    and whether the frame is boxed at all.
+
+    The columns are widened to multiples of ``_BLUR_ALIGN`` px, so OpenCV
+    runs the same vector code on a box as on the whole frame (no scalar tail
+    loops where the frame had none); frames whose width is not such a
+    multiple, or whose height or width is odd (the half-resolution levels
+    scale by exactly 2), blend every level over the whole frame.
+    """
+    H, W = sigma.shape
+    peak = float(sigma.max())
+    top = next((k for k, level in enumerate(BLUR_LEVELS) if level >= peak),
+               len(BLUR_LEVELS) - 1)
+    boxed = W % (2 * _BLUR_ALIGN) == 0 and H % 2 == 0
+    boxes = [(0, H, 0, W)] * top  # the first level's box is (nearly) always the whole frame
+    if boxed and top > 1:
+        # as int32 (twice as fast): the same order as the floats' past any lo > 0
+        bits = sigma.view(np.int32)
+        row_max = bits.max(axis=1).view(np.float32)
+        col_max = bits.max(axis=0).view(np.float32)
+        for k in range(2, top + 1):
+            lo = BLUR_LEVELS[k - 1]
+            rows, cols = np.flatnonzero(row_max > lo), np.flatnonzero(col_max > lo)
+            c0 = int(cols[0]) // _BLUR_ALIGN * _BLUR_ALIGN
+            c1 = min(W, -(-(int(cols[-1]) + 1) // _BLUR_ALIGN) * _BLUR_ALIGN)
+            boxes[k - 1] = (int(rows[0]), int(rows[-1]) + 1, c0, c1)
+    return boxes, boxed
+
+
+def _outside(box: tuple[int, int, int, int], shape: tuple[int, ...]) -> list[tuple[slice, slice]]:
+    """The parts of a frame of ``shape`` outside ``box`` (up to four bands), as index pairs."""
+    r0, r1, c0, c1 = box
+    H, W = shape[:2]
+    parts = [(slice(0, r0), slice(0, W)), (slice(r1, H), slice(0, W)),
+             (slice(r0, r1), slice(0, c0)), (slice(r0, r1), slice(c1, W))]
+    return [part for part in parts if part[0].start < part[0].stop and part[1].start < part[1].stop]
+
+
+def _grow(box: tuple[int, int, int, int], margin: int, shape: tuple[int, ...],
+          align: int = 1) -> tuple[int, int, int, int]:
+    """``box`` widened by ``margin`` on each side within ``shape``, its columns to multiples
+    of ``align``."""
+    r0, r1, c0, c1 = box
+    H, W = shape[:2]
+    c0 = max(0, c0 - margin) // align * align
+    c1 = min(W, -(-(c1 + margin) // align) * align)
+    return max(0, r0 - margin), min(H, r1 + margin), c0, c1
+
+
+def _union(boxes: list[tuple[int, int, int, int]]) -> tuple[int, int, int, int]:
+    return (min(b[0] for b in boxes), max(b[1] for b in boxes),
+            min(b[2] for b in boxes), max(b[3] for b in boxes))
+
+
+def _kernel_radius(sigma: float) -> int:
+    """Half the size of :func:`_gaussian_blur`'s kernel (px)."""
+    return (int(np.rint(8 * sigma + 1)) | 1) // 2
+
+
+def _box_blur(img: np.ndarray, sigma: float, box: tuple[int, int, int, int],
+              dst: np.ndarray) -> np.ndarray:
+    """The full-resolution blur of ``img`` inside ``box`` (``dst``'s box, returned), as the
+    whole frame's blur has it there: the box and the kernel's margin around it are blurred
+    into ``dst`` (the margin's own pixels, reflected at the frame's edges only, are not)."""
+    r0, r1, c0, c1 = box
+    g0, g1, h0, h1 = _grow(box, _kernel_radius(sigma), img.shape, _BLUR_ALIGN)
+    _gaussian_blur(img[g0:g1, h0:h1], sigma, dst[g0:g1, h0:h1])
+    return dst[r0:r1, c0:c1]
+
+
+def _half_source(box: tuple[int, int, int, int], level: float, shape: tuple[int, ...],
+                 boxed: bool = True) -> tuple[int, int, int, int]:
+    """The half-resolution pixels a half-resolution blur at ``level`` needs for ``box``
+    (full resolution): those the upsampling reads, and the kernel's margin round them
+    (all of them in a frame that is not boxed)."""
+    if not boxed:
+        return 0, shape[0] // 2, 0, shape[1] // 2
+    up = _half_up(box, shape)
+    return _grow(up, _kernel_radius(_half_sigma(level)), (shape[0] // 2, shape[1] // 2),
+                 _BLUR_ALIGN)
+
+
+def _half_up(box: tuple[int, int, int, int], shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+    """The half-resolution pixels a 2x INTER_LINEAR upsampling reads for ``box``: full
+    row ``y`` reads half rows ``y // 2 - 1`` to ``y // 2 + 1`` (so do columns)."""
+    r0, r1, c0, c1 = box
+    return _grow((r0 // 2, (r1 - 1) // 2 + 1, c0 // 2, (c1 - 1) // 2 + 1), 1,
+                 (shape[0] // 2, shape[1] // 2), _BLUR_ALIGN)
+
+
+def _half_sigma(level: float) -> float:
+    """The half-resolution sigma of a blur of ``level`` px (full resolution): the 2x2 box
+    average already blurred by ~0.5 px."""
+    return math.sqrt(level ** 2 - 0.25) / 2
+
+
+def _half_blur(level: float, box: tuple[int, int, int, int], canvas: _Canvas,
+               dst: np.ndarray, boxed: bool = True) -> np.ndarray:
+    """The half-resolution blur at ``level`` inside ``box`` (full resolution: ``dst``'s box,
+    returned), from ``canvas.half`` (the frame's 2x2 averages, made where
+    :func:`_half_source` says): blurred, then upsampled by INTER_LINEAR into ``dst`` round
+    the box, as the whole frame's would be there (the whole frame, in a frame that is not
+    boxed)."""
+    full = dst.shape
+    if not boxed:
+        small = _gaussian_blur(canvas.half, _half_sigma(level), canvas.small)
+        return cv2.resize(small, (full[1], full[0]), dst=dst, interpolation=cv2.INTER_LINEAR)
+    u0, u1, v0, v1 = up = _half_up(box, full)
+    g0, g1, h0, h1 = _grow(up, _kernel_radius(_half_sigma(level)), canvas.half.shape,
+                           _BLUR_ALIGN)
+    small = _gaussian_blur(canvas.half[g0:g1, h0:h1], _half_sigma(level),
+                           _work_view(canvas.small, (g1 - g0, h1 - h0, 3)))
+    cv2.resize(small[u0 - g0:u1 - g0, v0 - h0:v1 - h0], (2 * (v1 - v0), 2 * (u1 - u0)),
+               dst=dst[2 * u0:2 * u1, 2 * v0:2 * v1], interpolation=cv2.INTER_LINEAR)
+    r0, r1, c0, c1 = box
+    return dst[r0:r1, c0:c1]
+
+
+def _work_view(buffer: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """A C-contiguous array of ``shape`` over the start of ``buffer`` (no allocation)."""
+    return buffer.reshape(-1)[:math.prod(shape)].reshape(shape)
 
 
 def _gaussian_blur(img: np.ndarray, sigma: float, dst: np.ndarray | None = None) -> np.ndarray:

@@ -15,6 +15,11 @@ from sim2d.camera import (
     CameraRenderer,
     CameraSpec,
     Walls,
+    BLUR_LEVELS,
+    _angle_span,
+    _Canvas,
+    _blur_boxes,
+    _depth_blur,
     _gaussian_blur,
     camera_pose,
     cast_rays,
@@ -707,3 +712,101 @@ def test_the_blur_is_opencvs_gaussian_blur_pixel_for_pixel(sigma):
     image = np.random.default_rng(3).uniform(0, 255, (60, 81, 3)).astype(np.float32)
     want = cv2.GaussianBlur(image, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
     assert np.array_equal(_gaussian_blur(image, sigma), want)
+
+
+def whole_frame_depth_blur(img: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """The depth blur as it was before it was boxed: every level blurred over the whole
+    frame and blended over the whole frame (the reference for the boxed one)."""
+    f32 = np.float32
+    sigma = np.minimum(sigma, f32(BLUR_LEVELS[-1]))
+    top = next((k for k, level in enumerate(BLUR_LEVELS) if level >= float(sigma.max())),
+               len(BLUR_LEVELS) - 1)
+    out, half = img, None
+    for k in range(1, top + 1):
+        level, lo = BLUR_LEVELS[k], BLUR_LEVELS[k - 1]
+        if level >= 1.6:
+            if half is None:
+                half = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2),
+                                  interpolation=cv2.INTER_AREA)
+            small = _gaussian_blur(half, math.sqrt(level ** 2 - 0.25) / 2)
+            blurred = cv2.resize(small, (img.shape[1], img.shape[0]),
+                                 interpolation=cv2.INTER_LINEAR)
+        else:
+            blurred = _gaussian_blur(img, level)
+        frac = np.clip((sigma - f32(lo)) * f32(1.0 / (level - lo)), 0, 1)
+        out = cv2.blendLinear(out, blurred, f32(1) - frac, frac)
+    return out
+
+
+def sigma_field(rng: np.random.Generator, height: int, width: int) -> np.ndarray:
+    """A camera-like sigma map (px): small near the frame's edges, a far band round a random
+    horizon, a far box (a distant wall), and random spikes."""
+    rows = np.arange(height, dtype=np.float32)[:, None]
+    horizon = rng.uniform(0, height)
+    sigma = np.broadcast_to(0.05 + 40 / (1 + np.abs(rows - horizon)) ** 1.5 * rng.uniform(0, 1),
+                            (height, width)).astype(np.float32).copy()
+    r0, c0 = rng.integers(0, height), rng.integers(0, width)
+    sigma[r0:r0 + rng.integers(1, height), c0:c0 + rng.integers(1, width)] = rng.uniform(0, 3.5)
+    sigma *= np.float32(rng.choice([0.01, 0.1, 0.3, 0.6, 1.0]))  # frames up to every level
+    for _ in range(rng.integers(0, 4)):
+        sigma[rng.integers(0, height), rng.integers(0, width)] = rng.uniform(0, 4)
+    return sigma
+
+
+@pytest.mark.parametrize("size", [(240, 320), (64, 96), (60, 81), (61, 64)])
+def test_the_boxed_depth_blur_is_the_whole_frame_one_to_the_bit(size):
+    """Each blur level runs only on the box of pixels that blend it in (plus its kernel's
+    margin): the image must be the whole-frame blur's, bit for bit, wherever the boxes fall
+    (at the frame's edges, inside it, one pixel wide), and with frames too odd to box."""
+    rng = np.random.default_rng(11)
+    height, width = size
+    canvas = _Canvas(height, width)
+    levels_seen = set()
+    for trial in range(60):
+        img = rng.uniform(0, 255, (height, width, 3)).astype(np.float32)
+        sigma = sigma_field(rng, height, width)
+        want = whole_frame_depth_blur(img, sigma)
+        boxes, boxed = _blur_boxes(np.minimum(sigma, np.float32(BLUR_LEVELS[-1])))
+        levels_seen.add(len(boxes))
+        np.copyto(canvas.img, img)
+        got = _depth_blur(canvas.img, sigma.copy(), canvas)
+        assert np.array_equal(got, want), (trial, boxes)
+        assert boxed == (size in [(240, 320), (64, 96)])
+    assert levels_seen >= {1, 2, 3, 4}  # every level was blended, boxed or not
+
+
+def test_blur_boxes_hold_every_pixel_that_blends_each_level():
+    """A level's box holds every pixel whose sigma passes the level below, and no row or
+    column (before the alignment) without one."""
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        sigma = np.minimum(sigma_field(rng, 240, 320), np.float32(BLUR_LEVELS[-1]))
+        boxes, boxed = _blur_boxes(sigma)
+        assert boxed and boxes[0] == (0, 240, 0, 320)
+        for k, (r0, r1, c0, c1) in enumerate(boxes[1:], start=2):
+            passing = sigma > BLUR_LEVELS[k - 1]
+            inside = np.zeros_like(passing)
+            inside[r0:r1, c0:c1] = True
+            assert not (passing & ~inside).any()
+            rows = np.flatnonzero(passing.any(axis=1))
+            assert (r0, r1) == (rows[0], rows[-1] + 1)
+            assert c0 % 16 == 0 and (c1 % 16 == 0 or c1 == 320)
+
+
+def test_angle_span_is_the_wrapped_extremes_of_any_rays():
+    """The wedge of a cast is the least and greatest ray angle relative to the first,
+    wrapped by np.angle(np.exp(1j * a)); for sorted rays only the ends are wrapped, which
+    must give the same two floats as wrapping them all, and any other rays wrap them all."""
+    rng = np.random.default_rng(7)
+
+    def wrapped_all(angles):
+        rel = np.angle(np.exp(1j * (angles - angles[0])))
+        return float(rel.min()), float(rel.max())
+
+    for _ in range(3000):
+        f = focal_length(SPEC, rng.uniform(1.0, 10.0))
+        columns = rng.uniform(-50, 50) + np.arctan2(159.5 - np.arange(320.0), f)
+        shuffled = rng.permutation(columns)
+        wide = rng.uniform(-7, 7) + np.sort(rng.uniform(0, rng.uniform(0.1, 7), 50))
+        for angles in (columns, columns[::-1], shuffled, wide, columns[:1], columns[:2]):
+            assert _angle_span(angles) == wrapped_all(angles)
