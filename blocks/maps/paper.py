@@ -172,11 +172,12 @@ class LocalMapper:
         # and adds only the pixels it covers
         self._stamps = [self._beam_stamps(m) for m in mounts]
         foot = self.robot.at(0.0)
-        k = len(foot) // 2
-        self._foot = (self.half - k, self.half - k, foot)
+        corner = self.half - len(foot) // 2
+        self._foot = _placed(corner, corner, foot)
 
-    def _beam_stamps(self, mount: SensorMount) -> list[tuple[int, int, np.ndarray]]:
-        """``(row, col, stamp)`` of the beam of ``mount`` clipped at 0..L pixels."""
+    def _beam_stamps(self, mount: SensorMount) -> list[tuple[tuple[slice, slice], np.ndarray]]:
+        """Where in the local map, and the stamp, of the beam of ``mount`` clipped at 0..L
+        pixels."""
         n = self.beam.length_px
         matrix, axial = self.beam.rotated(mount.theta)
         rows, cols = np.nonzero(matrix)  # the whole beam's bounding box first: 5x less work
@@ -189,11 +190,11 @@ class LocalMapper:
             clipped = np.where(axial <= k + 0.5, matrix, np.uint8(0))
             rows, cols = np.nonzero(clipped)
             if len(rows) == 0:
-                stamps.append((row0, col0, clipped[:0, :0]))
+                stamps.append(_placed(row0, col0, clipped[:0, :0]))
                 continue
             r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
-            stamps.append((row0 + int(r0), col0 + int(c0),
-                           np.ascontiguousarray(clipped[r0:r1, c0:c1])))
+            stamps.append(_placed(row0 + int(r0), col0 + int(c0),
+                                  np.ascontiguousarray(clipped[r0:r1, c0:c1])))
         return stamps
 
     def local_map(self, ranges: np.ndarray) -> np.ndarray:
@@ -210,16 +211,19 @@ class LocalMapper:
         n, top, res = self.beam.length_px, self.max_range, self.resolution
         for stamps, reading in zip(self._stamps, np.asarray(ranges).tolist()):
             reading_px = int(round(min(float(reading), top) / res))
-            r0, c0, stamp = stamps[min(max(reading_px, 0), n)]
-            h, w = stamp.shape
-            view = lm[r0:r0 + h, c0:c0 + w]
+            where, stamp = stamps[min(max(reading_px, 0), n)]
+            view = lm[where]
             np.add(view, stamp, out=view)
-        r0, c0, foot = self._foot
-        h, w = foot.shape
-        view = lm[r0:r0 + h, c0:c0 + w]
+        where, foot = self._foot
+        view = lm[where]
         np.add(view, foot, out=view)
         np.minimum(lm, _SATURATED_U8, out=lm)
         return lm
+
+
+def _placed(row: int, col: int, stamp: np.ndarray) -> tuple[tuple[slice, slice], np.ndarray]:
+    """The slices that put ``stamp``'s [0, 0] at (row, col), and the stamp."""
+    return (slice(row, row + stamp.shape[0]), slice(col, col + stamp.shape[1])), stamp
 
 
 def orient_local_map(lm: np.ndarray, theta: float) -> np.ndarray:
