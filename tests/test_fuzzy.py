@@ -92,6 +92,8 @@ def test_one_row_evaluation_takes_nan_inputs_as_the_batch_does():
     for row in ([np.nan, 0.5, 0.0], [0.2, np.nan, 0.1], [0.2, 0.3, np.nan]):
         want = compiled.evaluate(np.array([row]))[0]
         assert _bits(compiled.evaluate_one(row)) == _bits(want)
+    with pytest.raises(ValueError, match="takes 3 inputs"):
+        compiled.evaluate_one([0.2, 0.3])
 
 
 def test_rule_tables_are_complete():
