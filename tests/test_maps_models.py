@@ -127,9 +127,13 @@ def test_local_map_sums_then_saturates_as_beam_by_beam_saturation():
                               _local_map_stamp_by_stamp(mapper, mounts, ranges))
 
 
-def test_local_mapper_refuses_more_beams_than_uint8_can_sum():
-    with pytest.raises(ValueError, match="overflow"):
-        LocalMapper([SensorMount(0.25, 0.0, 0.0)] * 253)
+def test_local_map_saturates_even_past_255_overlapping_beams():
+    mounts = [SensorMount(0.25, 0.0, 0.0)] * 256  # a uint8 sum that wrapped would read 0
+    mapper = LocalMapper(mounts)
+    ranges = np.full(256, 2.0)
+    lm = mapper.local_map(ranges)
+    assert np.array_equal(lm, _local_map_stamp_by_stamp(mapper, mounts, ranges))
+    assert lm[mapper.half, mapper.half + 5 + 20] == 3
 
 
 def test_global_map_adds_only_the_known_box_and_allocates_the_same_tiles():

@@ -164,9 +164,6 @@ class LocalMapper:
         reach = max(math.hypot(m.x, m.y) for m in mounts) / resolution if mounts else 0.0
         self.half = int(math.ceil(reach)) + self.beam.length_px + 1
         self.size = 2 * self.half + 1
-        if len(mounts) * self.beam.level + self.robot.level > np.iinfo(np.uint8).max:
-            raise ValueError(f"{len(mounts)} beams could overflow the uint8 local map before "
-                             "it saturates; use fewer than 250")
         # each sensor's beam turned to its mount angle and clipped at every whole-pixel
         # reading, cut to the clipped beam's own bounding box, so a step looks one up
         # and adds only the pixels it covers
@@ -204,8 +201,8 @@ class LocalMapper:
         neutral orientation, clip each beam by its reading and pivot it at
         its sensor; overlaps superpose up to 11. The stamps are summed first
         and saturated once: min(min(a + b, 11) + c, 11) = min(a + b + c, 11)
-        for levels >= 0, and the sum cannot overflow uint8 (checked at
-        construction), so one pass replaces a saturation per stamp.
+        for levels >= 0, and cv2.add saturates at 255 instead of wrapping, so
+        one pass replaces a saturation per stamp whatever the number of beams.
         """
         lm = np.zeros((self.size, self.size), dtype=np.uint8)
         n, top, res = self.beam.length_px, self.max_range, self.resolution
