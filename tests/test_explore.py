@@ -124,6 +124,21 @@ def test_loops_close_safely_within_the_wall_distance_targets(cli, tmp_path, worl
     assert following["fraction_within_tolerance"] >= target["within"], (world, following)
 
 
+def test_one_scan_groups_are_the_batch_groups():
+    from blocks.explore.controller import sonar_group_index, sonar_groups, sonar_groups_one
+    from sim2d.robot import load_robot
+    index = sonar_group_index(load_robot("atrv_mini"))
+    rng = np.random.default_rng(4)
+    scans = rng.uniform(0.05, 4.0, (200, 16))
+    scans[::7] = 4.0  # nothing in range
+    scans[3, 5] = np.nan
+    for scan in scans:
+        want = {name: float(v[0]) for name, v in sonar_groups(scan, index).items()}
+        got = sonar_groups_one(scan, index)
+        assert set(got) == set(want)
+        assert all(np.float64(got[k]).tobytes() == np.float64(want[k]).tobytes() for k in want)
+
+
 def test_narrow_corridor_groups_centre_the_robot():
     from blocks.explore.controller import narrow_corridor_groups
     wide = {k: np.array([v]) for k, v in

@@ -67,6 +67,35 @@ def test_batch_equals_row_by_row(name):
     assert np.array_equal(batch, rows)
 
 
+def _bits(values) -> bytes:
+    return np.asarray(values, dtype=np.float64).tobytes()
+
+
+@pytest.mark.parametrize("name", KBS + ["front+side"])
+def test_one_row_evaluation_is_the_batch_evaluation_bit_for_bit(name):
+    kb = (merge_kbs(load_kb(KB_DIR / "front.yaml"), load_kb(KB_DIR / "side.yaml"))
+          if name == "front+side" else load_kb(KB_DIR / f"{name}.yaml"))
+    compiled, fresh = compile_kb(kb), compile_kb(kb)
+    fresh.memo_size = 0  # every row computed, none looked up
+    inputs = oracle_inputs(kb, 3000, seed=21)
+    batch = compiled.evaluate(inputs)
+    for row, want in zip(inputs, batch):
+        assert _bits(compiled.evaluate_one(row.tolist())) == _bits(want), row
+        assert _bits(fresh.evaluate_one(row)) == _bits(want), row
+    assert 0 < len(compiled._by_activation) <= compiled.memo_size and not fresh._by_activation
+    for row, want in zip(inputs[:300], batch[:300]):  # again, now from the kept activations
+        assert _bits(compiled.evaluate_one(row)) == _bits(want), row
+
+
+def test_one_row_evaluation_takes_nan_inputs_as_the_batch_does():
+    compiled = compile_kb(load_kb(KB_DIR / "follow.yaml"))
+    for row in ([np.nan, 0.5, 0.0], [0.2, np.nan, 0.1], [0.2, 0.3, np.nan]):
+        want = compiled.evaluate(np.array([row]))[0]
+        assert _bits(compiled.evaluate_one(row)) == _bits(want)
+    with pytest.raises(ValueError, match="takes 3 inputs"):
+        compiled.evaluate_one([0.2, 0.3])
+
+
 def test_rule_tables_are_complete():
     counts = {name: len(load_kb(KB_DIR / f"{name}.yaml").rules) for name in KBS}
     assert counts == {"front": 64, "side": 16, "follow": 48}

@@ -95,6 +95,66 @@ def test_global_map_skips_unknown_pixels_and_saturates():
     assert gm.grid.n_tiles == before  # an all-unknown local map allocates nothing
 
 
+def _local_map_stamp_by_stamp(mapper: LocalMapper, mounts: list[SensorMount],
+                              ranges: np.ndarray) -> np.ndarray:
+    """The paper's steps 3a-3e written out: every clipped beam added with saturation in turn."""
+    n, res = mapper.beam.length_px, mapper.resolution
+    lm = np.zeros((mapper.size, mapper.size), np.uint8)
+    for m, reading in zip(mounts, ranges):
+        k = min(max(int(round(min(float(reading), mapper.max_range) / res)), 0), n)
+        beam = mapper.beam.clipped(k + 0.5, m.theta)  # whole pixels: k + 1/2 keeps pixel k
+        r0 = mapper.half + int(round(m.y / res)) - n
+        c0 = mapper.half + int(round(m.x / res)) - n
+        view = lm[r0:r0 + 2 * n + 1, c0:c0 + 2 * n + 1]
+        view[:] = np.minimum(view + beam, 3)
+    foot = mapper.robot.at(0.0)
+    k = len(foot) // 2
+    view = lm[mapper.half - k:mapper.half + k + 1, mapper.half - k:mapper.half + k + 1]
+    view[:] = np.minimum(view + foot, 3)
+    return lm
+
+
+def test_local_map_sums_then_saturates_as_beam_by_beam_saturation():
+    rng = np.random.default_rng(5)
+    mounts = [SensorMount(*rng.uniform(-0.3, 0.3, 2), rng.uniform(-math.pi, math.pi))
+              for _ in range(16)] + [SensorMount(0.1, 0.0, 0.2)] * 4  # overlapping beams
+    mapper = LocalMapper(mounts)
+    for _ in range(40):
+        ranges = rng.choice([rng.uniform(-0.1, 4.5), 0.0, 4.0, 9.0, 0.024, 0.026], len(mounts))
+        ranges = np.where(rng.random(len(mounts)) < 0.5, rng.uniform(0.0, 4.2, len(mounts)),
+                          ranges)
+        assert np.array_equal(mapper.local_map(ranges),
+                              _local_map_stamp_by_stamp(mapper, mounts, ranges))
+
+
+def test_local_map_saturates_even_past_255_overlapping_beams():
+    mounts = [SensorMount(0.25, 0.0, 0.0)] * 256  # a uint8 sum that wrapped would read 0
+    mapper = LocalMapper(mounts)
+    ranges = np.full(256, 2.0)
+    lm = mapper.local_map(ranges)
+    assert np.array_equal(lm, _local_map_stamp_by_stamp(mapper, mounts, ranges))
+    assert lm[mapper.half, mapper.half + 5 + 20] == 3
+
+
+def test_global_map_adds_only_the_known_box_and_allocates_the_same_tiles():
+    mapper = LocalMapper([SensorMount(0.25, 0.0, a) for a in np.linspace(-1.0, 1.0, 5)])
+    rng = np.random.default_rng(11)
+    cropped, whole = PaperGlobalMap(0.05), PaperGlobalMap(0.05)
+    for _ in range(60):
+        pose = np.array([*rng.uniform(-6.0, 6.0, 2), rng.uniform(-math.pi, math.pi)])
+        lm = mapper.local_map(rng.uniform(0.1, 4.0, 5))
+        cropped.add(lm, pose)
+        # the whole oriented local map, as step 4 states it
+        oriented = orient_local_map(lm, pose[2])
+        half = lm.shape[0] // 2
+        ix, iy = whole.grid.cell_of(pose[0], pose[1])
+        whole.grid.update(ix - half, iy - half, oriented,
+                          lambda d, s: np.minimum(d + s, 3, out=d), mask=oriented != 0)
+    (a, corner_a), (b, corner_b) = cropped.levels(), whole.levels()
+    assert corner_a == corner_b and np.array_equal(a, b)
+    assert [k for k, _ in cropped.grid.tiles()] == [k for k, _ in whole.grid.tiles()]
+
+
 def test_borders_are_unknown_cells_next_to_free_space():
     levels = np.zeros((5, 5), np.uint8)
     levels[1:4, 1:4] = 2

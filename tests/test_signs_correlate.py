@@ -132,6 +132,46 @@ def _clip_to_image(c: np.ndarray) -> np.ndarray:
     return c
 
 
+def _model_on_arrays(p, camera, plate_height, plate_width):
+    """The width fit's model as array expressions over both edges (sgn = [1, -1])."""
+    x, y, phi = (float(v) for v in p)
+    f, half = camera.f, plate_width / 2
+    lx, ly = math.sin(phi) * half, -math.cos(phi) * half
+    dlx, dly = math.cos(phi) * half, math.sin(phi) * half
+    sgn = np.array([1.0, -1.0])
+    ex = np.maximum(x + sgn * lx, 1e-3)
+    ey = y + sgn * ly
+    pred = np.concatenate([camera.cx - f * ey / ex, f * plate_height / ex])
+    du_dex, du_dey, dh_dex = f * ey / ex ** 2, -f / ex, -f * plate_height / ex ** 2
+    jac = np.empty((4, 3))
+    jac[:2, 0], jac[:2, 1] = du_dex, du_dey
+    jac[:2, 2] = sgn * (du_dex * dlx + du_dey * dly)
+    jac[2:, 0], jac[2:, 1] = dh_dex, 0.0
+    jac[2:, 2] = sgn * dh_dex * dlx
+    return pred, jac
+
+
+def test_width_fit_model_is_the_array_model_bit_for_bit_and_its_jacobian_is_right():
+    from blocks.signs.geometry import _model
+    rng = np.random.default_rng(8)
+    for k in range(3000):
+        camera = CameraModel.of(640, 480, math.radians(60), rng.uniform(1.0, 8.0),
+                                rng.uniform(-0.3, 0.3))
+        p = np.array([rng.uniform(-0.5, 8.0), rng.uniform(-4.0, 4.0), rng.uniform(-7.0, 7.0)])
+        if k % 5 == 0:
+            p[0] = rng.choice([0.0, 1e-3, -0.1])  # the clamp at 1 mm in front
+        pred, jac = _model(p, camera, 0.2, 0.3)
+        want_pred, want_jac = _model_on_arrays(p, camera, 0.2, 0.3)
+        assert pred.tobytes() == want_pred.tobytes() and jac.tobytes() == want_jac.tobytes(), p
+    camera, p, eps = CameraModel.of(640, 480, math.radians(60), 2.0), np.array([3.0, 0.4, 2.8]), 1e-6
+    _, jac = _model(p, camera, 0.2, 0.3)
+    for i in range(3):
+        dp = np.zeros(3)
+        dp[i] = eps
+        numeric = (_model(p + dp, camera, 0.2, 0.3)[0] - _model(p - dp, camera, 0.2, 0.3)[0]) / (2 * eps)
+        assert np.allclose(jac[:, i], numeric, rtol=1e-5, atol=1e-4), i
+
+
 def test_clipped_plate_is_placed_from_its_whole_edge():
     camera = CameraModel.of(SPEC.width, SPEC.height, SPEC.hfov, 1.5, 0.1)
     sign = Sign("X", 2.5, 0.3, math.radians(160))

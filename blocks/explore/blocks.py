@@ -7,7 +7,8 @@ import numpy as np
 
 from ..core import Block, BlockError, Param, Port, block
 from ..fuzzy import compile_kb, load_kb
-from .controller import KB_DIR, narrow_corridor_groups, sonar_group_index, sonar_groups
+from .controller import (KB_DIR, narrow_corridor_groups, sonar_group_index, sonar_groups,
+                         sonar_groups_one)
 from .loop import LoopClosure
 
 SUBGRAPHS = "subgraphs"  # publishes perimeter_follower.yaml as a block type
@@ -48,11 +49,13 @@ class SonarGroups(Block):
             raise BlockError(f"the robot file has no sonar group(s) {sorted(missing)}",
                              node=self.name, field="param 'robot'")
         self._index = index
+        self._names = list(self.outputs)
 
     def step(self, ranges: np.ndarray) -> dict[str, Any]:
-        groups = sonar_groups(ranges, self._index)
-        if self.p.narrow_corridors:
-            groups = narrow_corridor_groups(groups, self.p.side_target)
+        if not self.p.narrow_corridors:
+            groups = sonar_groups_one(ranges, self._index)
+            return {name: groups[name] for name in self._names}
+        groups = narrow_corridor_groups(sonar_groups(ranges, self._index), self.p.side_target)
         return {name: float(value[0]) for name, value in groups.items()
                 if name in self.outputs}
 
@@ -73,9 +76,8 @@ class _FuzzyBlock(Block):
         self.controller = compile_kb(self.kb)
         self._order = self.controller.input_names
 
-    def _evaluate(self, values: dict[str, float]) -> np.ndarray:
-        row = np.array([[float(values[name]) for name in self._order]])
-        return self.controller.evaluate(row)[0]
+    def _evaluate(self, values: dict[str, float]) -> list[float]:
+        return self.controller.evaluate_one([values[name] for name in self._order])
 
 
 KB_PARAM_DOC = "knowledge base YAML (default: the packaged one)"
@@ -91,7 +93,7 @@ class FrontCollision(_FuzzyBlock):
     params = {"kb": Param(str, "", KB_PARAM_DOC)}
 
     def step(self, Fr: float, FrLt: float, FrRt: float) -> dict[str, Any]:  # noqa: N803
-        return {"FrontCP": float(self._evaluate({"Fr": Fr, "FrLt": FrLt, "FrRt": FrRt})[0])}
+        return {"FrontCP": self._evaluate({"Fr": Fr, "FrLt": FrLt, "FrRt": FrRt})[0]}
 
 
 @block("explore.side_cp", category="explore")
@@ -104,7 +106,7 @@ class SideCollision(_FuzzyBlock):
     params = {"kb": Param(str, "", KB_PARAM_DOC)}
 
     def step(self, Rt: float, RtFr: float) -> dict[str, Any]:  # noqa: N803
-        return {"RightCP": float(self._evaluate({"Rt": Rt, "RtFr": RtFr})[0])}
+        return {"RightCP": self._evaluate({"Rt": Rt, "RtFr": RtFr})[0]}
 
 
 @block("explore.follow", category="explore")
@@ -133,8 +135,8 @@ class Follow(_FuzzyBlock):
     def setup(self) -> None:
         super().setup()
         limits = _robot_spec(self.p.robot).limits
-        self._scale = np.array([self.p.v_fraction * limits.max_speed,
-                                self.p.w_fraction * limits.max_turn_rate])
+        self._scale = (float(self.p.v_fraction * limits.max_speed),
+                       float(self.p.w_fraction * limits.max_turn_rate))
         self._v, self._w = (self.controller.output_names.index(n) for n in ("v", "w"))
 
     def step(self, FrontCP: float, RightCP: float, dRt: float,  # noqa: N803
@@ -142,7 +144,7 @@ class Follow(_FuzzyBlock):
         if stop:
             return {"v": 0.0, "w": 0.0}
         out = self._evaluate({"FrontCP": FrontCP, "RightCP": RightCP, "dRt": dRt})
-        return {"v": float(out[self._v] * self._scale[0]), "w": float(out[self._w] * self._scale[1])}
+        return {"v": out[self._v] * self._scale[0], "w": out[self._w] * self._scale[1]}
 
 
 @block("explore.loop_closure", category="explore")

@@ -57,6 +57,22 @@ def sonar_groups(ranges: np.ndarray, index: dict[str, list[int]]) -> dict[str, n
     return groups
 
 
+def sonar_groups_one(ranges: np.ndarray, index: dict[str, list[int]]) -> dict[str, float]:
+    """:func:`sonar_groups` of one scan as Python floats: the same numbers, a tenth of the cost.
+
+    One robot's (16,) ranges make a dozen tiny numpy reductions cost more than
+    the minimums themselves. A scan with a NaN goes through :func:`sonar_groups`
+    (``min`` of Python floats does not propagate NaN as ``np.min`` does).
+    """
+    values = np.asarray(ranges, dtype=np.float64).ravel().tolist()
+    if any(v != v for v in values):
+        return {name: float(v[0]) for name, v in sonar_groups(np.asarray(ranges), index).items()}
+    groups = {name: min([values[i] for i in idx]) for name, idx in index.items()
+              if name not in ("Rt1", "Rt2")}
+    groups["dRt"] = values[index["Rt1"][0]] - values[index["Rt2"][0]]
+    return groups
+
+
 class PerimeterController:
     """Group distances in, velocity commands (m/s, rad/s) out; one call for many robots."""
 

@@ -4,7 +4,9 @@ scikit-fuzzy's ``ControlSystemSimulation.compute()`` walks Python objects and
 takes ~95 ms for a 64-rule controller. Here everything is arrays, prepared
 once: the input terms' trapezoids, each rule's antecedent term indices, and
 the output terms. One call evaluates a batch of B input vectors with a few
-dozen numpy operations.
+dozen numpy operations. For one robot, where every numpy call is mostly
+overhead, ``evaluate_one`` gives the same numbers bit for bit with half the
+work (see its docstring).
 
 To match scikit-fuzzy's centroid exactly, the output is sampled where
 scikit-fuzzy samples it: on the universe grid plus, for each output term, the
@@ -14,11 +16,14 @@ computed exactly (trapezoid rule for area and moment).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .kb import KnowledgeBase
 
 _EPS = np.finfo(float).eps
+_EPS_PY = float(_EPS)
 
 
 def trapezoids(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
@@ -59,6 +64,8 @@ class CompiledController:
     and their term lists by terms that never fire.
     """
 
+    memo_size = 256  # activation patterns whose outputs evaluate_one keeps (first come)
+
     def __init__(self, kb: KnowledgeBase) -> None:
         self.name = kb.name
         self.input_names = list(kb.inputs)
@@ -81,6 +88,7 @@ class CompiledController:
             for var, term in rule.antecedents:
                 self._antecedents[r, self.input_names.index(var)] = offsets[(var, term)]
         self._prepare_outputs(kb)
+        self._prepare_single()
 
     def _prepare_outputs(self, kb: KnowledgeBase) -> None:
         variables = list(kb.outputs.values())
@@ -112,6 +120,89 @@ class CompiledController:
         rs, rsh, fs, fsh = _slopes(*shape)
         # Broadcast to (B, O, T, M) for the membership of the sample points.
         self._out_slopes = tuple(v[None, :, :, None] for v in (self._oa, self._od, rs, rsh, fs, fsh))
+
+    def _prepare_single(self) -> None:
+        """Tables for :meth:`evaluate_one`: the same numbers as Python floats and flat indices."""
+        rs, rsh, fs, fsh = self._in_slopes
+        self._terms_py = [(int(i), float(a), float(d), float(r), float(rh), float(f), float(fh))
+                          for i, a, d, r, rh, f, fh in zip(self._term_input, self._in_a,
+                                                             self._in_d, rs, rsh, fs, fsh)]
+        self._low_py, self._high_py = self.low.tolist(), self.high.tolist()
+        n_mu = len(self._term_input)
+        # mu gets a 1 (input not used) and a 0 at its end; rule R is the 0 rule that the
+        # padding terms point at, so the strengths need no extra column
+        zero_rule = np.full((1, self._antecedents.shape[1]), n_mu + 1)
+        self._antecedents_one = np.vstack([self._antecedents, zero_rule])
+        # each output term twice: once for its rising crossing point, once for the falling one
+        outputs, terms = len(self._grid), self._n_terms
+        groups = [self._columns[self._starts[k]:(self._starts[k + 1] if k + 1 < len(self._starts)
+                                                 else len(self._columns))]
+                  for k in range(outputs * terms)]
+        twice = [groups[o * terms + t] for o in range(outputs) for _ in range(2)
+                 for t in range(terms)]
+        self._columns_twice = np.concatenate(twice)
+        self._starts_twice = np.cumsum([0] + [len(g) for g in twice[:-1]])
+        self._cross_slope = np.concatenate([self._rise, -self._fall], axis=1)
+        self._cross_base = np.concatenate([self._oa, self._od], axis=1)
+        # the output terms' trapezoids shaped (O, T, 1) against (O, 1, M) sample points
+        self._member_shape = tuple(v[0] for v in self._out_slopes)
+        # outputs by term activations: the crisp outputs are a function of the activations
+        # alone, and a controller spends much of its time with one term fully active
+        # (a third to a half of the office run's calls repeat one of a few dozen)
+        self._by_activation: dict[bytes, tuple[float, ...]] = {}
+
+    def evaluate_one(self, values) -> list[float]:
+        """Crisp outputs for one input vector (a sequence of floats in ``input_names`` order).
+
+        The same numbers as ``evaluate(np.array([values]))[0]``, bit for bit, in a
+        third fewer numpy calls: one robot's controller is all call overhead. The
+        input memberships are the same float operations done on Python floats,
+        the padding column of the rule strengths is a rule of its own, both
+        crossing points of every output term come from one multiply-add, and the
+        centroid's last division is done on Python floats. The outputs of the
+        first ``memo_size`` activation patterns are kept and looked up: they
+        depend on nothing else. Inputs that are NaN go through :meth:`evaluate`
+        (Python's min and max do not propagate NaN).
+        """
+        if len(values) != len(self._low_py):
+            raise ValueError(f"{self.name} takes {len(self._low_py)} inputs "
+                             f"{self.input_names}, got {len(values)}")
+        xs = [max(min(float(v), hi), lo) for v, lo, hi in zip(values, self._low_py,
+                                                                self._high_py)]
+        if any(x != x for x in xs):
+            return self.evaluate(np.array([values], dtype=np.float64))[0].tolist()
+        mu = []
+        for i, a, d, rise_slope, rise_shift, fall_slope, fall_shift in self._terms_py:
+            x = xs[i]
+            rise = (x - a) * rise_slope + rise_shift
+            fall = (d - x) * fall_slope + fall_shift
+            m = fall if fall < rise else rise
+            m = 1.0 if m > 1.0 else m
+            mu.append(0.0 if m < 0.0 else m)
+        mu.append(1.0)
+        mu.append(0.0)
+        strengths = np.minimum.reduce(np.array(mu)[self._antecedents_one], axis=1)
+        twice = np.maximum.reduceat(strengths[self._columns_twice], self._starts_twice)
+        key = twice.tobytes()
+        known = self._by_activation.get(key)
+        if known is not None:
+            return list(known)
+        outputs, terms = self._grid.shape[0], self._n_terms
+        twice = twice.reshape(outputs, 2 * terms)
+        grid = self._grid.shape[1]
+        points = np.empty((outputs, grid + 2 * terms))
+        points[:, :grid] = self._grid
+        cross = points[:, grid:]
+        np.multiply(twice, self._cross_slope, out=cross)
+        cross += self._cross_base
+        points.sort(axis=1)
+        member = _trapezoids(points[:, None, :], *self._member_shape)
+        np.minimum(member, twice[:, :terms, None], out=member)
+        y = np.maximum.reduce(member, axis=1)
+        out = _centroid_lists(points, y)
+        if len(self._by_activation) < self.memo_size:
+            self._by_activation[key] = tuple(out)
+        return out
 
     def rule_strengths(self, inputs: np.ndarray) -> np.ndarray:
         """Firing strength of every rule, (B, R + 1) with a final 0 column, for (B, n_inputs)."""
@@ -155,9 +246,8 @@ class CompiledController:
         missing = set(self.input_names) - set(inputs)
         if missing:
             raise KeyError(f"missing inputs {sorted(missing)} for {self.name}")
-        row = np.array([[float(inputs[n]) for n in self.input_names]])
-        out = self.evaluate(row)[0]
-        return {name: float(v) for name, v in zip(self.output_names, out)}
+        out = self.evaluate_one([float(inputs[n]) for n in self.input_names])
+        return dict(zip(self.output_names, out))
 
 
 def _centroid(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -176,6 +266,26 @@ def _centroid(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     total = area.sum(axis=-1)
     centroid = moment.sum(axis=-1) / np.fmax(total, _EPS)
     return np.where(total > 0, centroid, np.nan)
+
+
+def _centroid_lists(x: np.ndarray, y: np.ndarray) -> list[float]:
+    """:func:`_centroid` of (O, M) rows as a list of floats, the same numbers bit for bit.
+
+    The same array operations up to the two sums; the division, the guard
+    against zero area and the nan are done on the O Python floats.
+    """
+    dx = np.subtract(x[:, 1:], x[:, :-1])
+    y1, y2 = y[:, :-1], y[:, 1:]
+    ysum = y1 + y2
+    area = dx * ysum
+    moment = (y2 + ysum) * (1 / 3)
+    moment *= dx
+    moment += x[:, :-1] * ysum
+    moment *= dx
+    totals = np.add.reduce(area, axis=1).tolist()
+    moments = np.add.reduce(moment, axis=1).tolist()
+    return [m / (t if t > _EPS_PY else _EPS_PY) if t > 0 else math.nan
+            for m, t in zip(moments, totals)]
 
 
 def compile_kb(kb: KnowledgeBase) -> CompiledController:
