@@ -451,8 +451,11 @@ def _mergeable(a: LinearFeature, b: LinearFeature, angle_tol: float, offset_tol:
     return gap_along(a, b) <= max_gap
 
 
+_QUICK_SLACK = 1e-9  # m (and cosine): see _mergeable_quick
+
+
 def _mergeable_quick(a: tuple, b: tuple, cos_tol: float, offset_tol: float,
-                     max_gap: float, slack: float = 1e-9) -> bool | None:
+                     max_gap: float, slack: float = _QUICK_SLACK) -> bool | None:
     """:func:`_mergeable` in plain floats, from (nx, ny, x0, y0, x1, y1, ...) tuples; None
     when a test lands within ``slack`` of its bound, where the two roundings (a few
     units in the last place of metres) could disagree."""
@@ -544,14 +547,22 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
     while merged_any:
         merged_any = False
         out: list[LinearFeature] = []
+        facing: list[tuple[float, float]] = []  # each kept feature's normal
         for f in pool:
-            for i, g in enumerate(out):
+            fx, fy = numbers(f)[:2]
+            for i, (gx, gy) in enumerate(facing):
+                # most pairs face different ways: _mergeable_quick's first test, inline
+                if gx * fx + gy * fy - cos_tol < -_QUICK_SLACK:
+                    continue
+                g = out[i]
                 if mergeable(g, f):
                     out[i] = merged(g, f)
+                    facing[i] = numbers(out[i])[:2]
                     merged_any = True
                     break
             else:
                 out.append(f)
+                facing.append((fx, fy))
         pool = sorted(out, key=order)
     return pool
 
@@ -581,6 +592,7 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
         memo.configure("predict", (float(cone_deg), float(max_range)))
         reach = max_range + 1e-6  # farther than this from a segment's box: cannot see it
         parts = []
+        matched: dict[int, tuple] = {}  # per id array of an earlier call: where ours are in it
         for f in features:
             key = memo.serial(f)[0]
             known = memo.get("predict", key)
@@ -588,9 +600,14 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
             todo = np.ones(len(sensors), dtype=bool)
             if known is not None:
                 known_ids, known_ranges = known
-                at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
-                todo = known_ids[at] != ids
-                ranges[~todo] = known_ranges[at[~todo]]
+                match = matched.get(id(known_ids))
+                if match is None:  # the features kept by one call share its id array
+                    at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
+                    hit = known_ids[at] == ids
+                    match = matched[id(known_ids)] = (known_ids, hit, at[hit])
+                _, hit, at = match
+                todo = ~hit
+                ranges[hit] = known_ranges[at]
             (x0, x1), (y0, y1) = sorted((f.p0[0], f.p1[0])), sorted((f.p0[1], f.p1[1]))
             todo &= (sensors[:, 0] >= x0 - reach) & (sensors[:, 0] <= x1 + reach) \
                 & (sensors[:, 1] >= y0 - reach) & (sensors[:, 1] <= y1 + reach)

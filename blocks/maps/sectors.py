@@ -203,6 +203,17 @@ def exact_weights(values: np.ndarray, readings: int) -> bool:
     return readings * float(np.abs(values).max()) < 2.0 ** (52 - e)
 
 
+def _joined(gone: Beams, new: Beams) -> Beams:
+    """``gone`` with negated log-odds, then ``new``: their run ends are those of the two
+    apart, the first negated (``beam_terms`` keeps a term by its value being non-zero,
+    which negation keeps), in the same order."""
+    fields = Beams.__dataclass_fields__
+    parts = {name: np.concatenate([getattr(gone, name), getattr(new, name)]) for name in fields}
+    for name in ("free_value", "occ_value"):
+        np.negative(parts[name][:len(gone)], out=parts[name][:len(gone)])
+    return Beams(**parts)
+
+
 @dataclass
 class _State:
     keys: np.ndarray  # (N,) sorted reading keys
@@ -289,14 +300,15 @@ class BeamSums:
             diff = np.zeros((union[0], stride))
             br, bc = base.corner[0] - r0, base.corner[1] - c0
             diff[br:br + bh, bc:bc + bw + 1] = base.diff
-        i_old, v_old = run_ends(self.spans, base.beams.take(gone), (r0, c0), stride)
-        i_new, v_new = run_ends(self.spans, beams.take(new), (r0, c0), stride)
-        index = np.concatenate([i_old, i_new])
+        # the readings gone, with their log-odds negated, then the new ones: one pass
+        index, value = run_ends(self.spans, _joined(base.beams.take(gone), beams.take(new)),
+                                (r0, c0), stride)
         if index.size:
             lo = int(index.min())
             size = int(index.max()) + 1 - lo
-            diff.reshape(-1)[lo:lo + size] += np.bincount(
-                index - lo, np.concatenate([-v_old, v_new]), minlength=size)
+            if lo:
+                index -= lo
+            diff.reshape(-1)[lo:lo + size] += np.bincount(index, value, minlength=size)
         self.readings_drawn += len(gone) + len(new)
         nr, nc = corner[0] - r0, corner[1] - c0
         if (nr, nc) == (0, 0) and union == shape:
