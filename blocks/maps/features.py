@@ -76,11 +76,23 @@ def sensor_poses_along(poses: np.ndarray, mounts: np.ndarray) -> np.ndarray:
 
 def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Centroid and unit direction of the total-least-squares line through ``points``."""
-    centre = points.mean(axis=0)
+    centre, direction, _ = _fit_line_offsets(points)
+    return centre, direction
+
+
+def _mean_rows(points: np.ndarray) -> np.ndarray:
+    """``points.mean(axis=0)``, the same sum and division, without ``mean``'s Python layer
+    (fitting lines to a few echoes is called tens of thousands of times per run)."""
+    return np.add.reduce(points, axis=0) / len(points)
+
+
+def _fit_line_offsets(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_fit_line`, and the points less the centroid."""
+    centre = _mean_rows(points)
     d = points - centre
     sxx, syy, sxy = float(d[:, 0] @ d[:, 0]), float(d[:, 1] @ d[:, 1]), float(d[:, 0] @ d[:, 1])
     angle = 0.5 * math.atan2(2 * sxy, sxx - syy)  # major axis of the scatter
-    return centre, np.array([math.cos(angle), math.sin(angle)])
+    return centre, np.array([math.cos(angle), math.sin(angle)]), d
 
 
 def _reflection_points(sensors: np.ndarray, ranges: np.ndarray, normal: np.ndarray,
@@ -104,10 +116,11 @@ def _feature_from(points: np.ndarray, sensors: np.ndarray, ranges: np.ndarray,
     reflection points give the line's offset and extent)."""
     centre, direction = _fit_line(points)
     normal = np.array([-direction[1], direction[0]])
-    if np.dot(sensors[:, :2].mean(axis=0) - centre, normal) < 0:
+    seen_from = _mean_rows(sensors[:, :2])
+    if np.dot(seen_from - centre, normal) < 0:
         normal = -normal
     wall = _reflection_points(sensors, ranges, normal, half_cone)
-    return _refit(wall, sensors[:, :2].mean(axis=0) - wall.mean(axis=0))
+    return _refit(wall, seen_from - _mean_rows(wall))
 
 
 def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
@@ -491,15 +504,16 @@ def moved(f: LinearFeature, rotation: np.ndarray, pivot: np.ndarray,
 
 
 def _refit(points: np.ndarray, normal_hint: np.ndarray) -> LinearFeature:
-    centre, direction = _fit_line(points)
+    centre, direction, d = _fit_line_offsets(points)
     normal = np.array([-direction[1], direction[0]])
     if np.dot(normal, normal_hint) < 0:
         normal = -normal
-    along = (points - centre) @ direction
-    across = (points - centre) @ normal
+    along = d @ direction
+    across = d @ normal
+    # np.mean(across ** 2), the same sum and division
     return LinearFeature(p0=centre + along.min() * direction, p1=centre + along.max() * direction,
                          normal=normal, points=points,
-                         residual=float(np.sqrt(np.mean(across ** 2))))
+                         residual=float(np.sqrt(np.add.reduce(across ** 2) / len(across))))
 
 
 def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
@@ -591,13 +605,19 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
         ids = np.asarray(ids, dtype=np.int64)
         memo.configure("predict", (float(cone_deg), float(max_range)))
         reach = max_range + 1e-6  # farther than this from a segment's box: cannot see it
-        parts = []
+        ends = np.array([[*f.p0, *f.p1] for f in features])  # (F, 4)
+        x0, x1 = np.minimum(ends[:, 0], ends[:, 2]), np.maximum(ends[:, 0], ends[:, 2])
+        y0, y1 = np.minimum(ends[:, 1], ends[:, 3]), np.maximum(ends[:, 1], ends[:, 3])
+        sx, sy = sensors[None, :, 0], sensors[None, :, 1]
+        todo = (sx >= (x0 - reach)[:, None]) & (sx <= (x1 + reach)[:, None]) \
+            & (sy >= (y0 - reach)[:, None]) & (sy <= (y1 + reach)[:, None])  # (F, M)
+        ranges = np.full(todo.shape, np.inf)
+        keys = []
         matched: dict[int, tuple] = {}  # per id array of an earlier call: where ours are in it
-        for f in features:
+        for k, f in enumerate(features):
             key = memo.serial(f)[0]
+            keys.append(key)
             known = memo.get("predict", key)
-            ranges = np.full(len(sensors), np.inf)
-            todo = np.ones(len(sensors), dtype=bool)
             if known is not None:
                 known_ids, known_ranges = known
                 match = matched.get(id(known_ids))
@@ -606,25 +626,19 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
                     hit = known_ids[at] == ids
                     match = matched[id(known_ids)] = (known_ids, hit, at[hit])
                 _, hit, at = match
-                todo = ~hit
-                ranges[hit] = known_ranges[at]
-            (x0, x1), (y0, y1) = sorted((f.p0[0], f.p1[0])), sorted((f.p0[1], f.p1[1]))
-            todo &= (sensors[:, 0] >= x0 - reach) & (sensors[:, 0] <= x1 + reach) \
-                & (sensors[:, 1] >= y0 - reach) & (sensors[:, 1] <= y1 + reach)
-            parts.append((key, ranges, np.flatnonzero(todo)))
-        # the new pairs of all features at once, element by element
-        i = np.concatenate([p[2] for p in parts])
-        segments = np.repeat(np.array([[*f.p0, *f.p1, 0.0] for f in features]),
-                             [len(p[2]) for p in parts], axis=0)
+                todo[k] &= ~hit
+                ranges[k, hit] = known_ranges[at]
+        # the new pairs of all features at once, element by element (feature by feature,
+        # as np.nonzero goes)
+        which, i = np.nonzero(todo)
+        segments = np.column_stack([ends, np.zeros(len(features))])[which]
         dist = nearest_in_cone(sensors[i, 0], sensors[i, 1], np.cos(sensors[i, 2]),
                                np.sin(sensors[i, 2]), segments, half)[0]
-        found = np.split(np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf),
-                         np.cumsum([len(p[2]) for p in parts])[:-1])
+        ranges[which, i] = np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf)
         out = np.full(len(sensors), np.inf)
-        for (key, ranges, todo), new in zip(parts, found):
-            ranges[todo] = new
-            memo.store("predict", key, (ids, ranges))
-            np.minimum(out, ranges, out=out)
+        for key, row in zip(keys, ranges):
+            memo.store("predict", key, (ids, row))
+            np.minimum(out, row, out=out)
         return out
     segments = np.array([[*f.p0, *f.p1, 0.0] for f in features])
     out = np.empty(len(sensors))
