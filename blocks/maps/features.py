@@ -249,12 +249,14 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
             continue
         pts = axis[rows, j]
         step = pts[1:] - pts[:-1]
-        gaps = np.flatnonzero(np.hypot(step[:, 0], step[:, 1]) > max_gap) + 1
-        for part in np.split(rows, gaps):
-            key = None if memo is None else (j, ids[part].tobytes())
+        cuts = [0, *(np.flatnonzero(np.hypot(step[:, 0], step[:, 1]) > max_gap) + 1).tolist(),
+                len(rows)]
+        names = None if memo is None else ids[rows].tobytes()  # 8 bytes a scan
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            key = None if names is None else (j, names[8 * a:8 * b])  # ids[part].tobytes()
             found = None if key is None else memo.get("segment", key)
             if found is None:
-                todo.append((len(slots), j, part, key))
+                todo.append((len(slots), j, rows[a:b], key))
             slots.append(found)
     if todo:
         flat = np.concatenate([axis[part, j] for _, j, part, _ in todo])
