@@ -134,6 +134,28 @@ class ConeSpans:
     reached_from: np.ndarray
     reached_to: np.ndarray
 
+    @property
+    def small(self) -> SmallRuns:
+        """``row``, ``start``, ``stop``, ``abs_row`` and ``half_width`` as int32."""
+        found = self.__dict__.get("_small")
+        if found is None:
+            found = SmallRuns(*(np.ascontiguousarray(getattr(self, name), dtype=np.int32)
+                                for name in ("row", "start", "stop", "abs_row", "half_width")))
+            object.__setattr__(self, "_small", found)
+        return found
+
+
+@dataclass(frozen=True)
+class SmallRuns:
+    """The per-run tables of :class:`ConeSpans` in int32 (offsets of a few hundred cells),
+    for the inner loop of :func:`blocks.maps.sectors.run_ends`."""
+
+    row: np.ndarray
+    start: np.ndarray
+    stop: np.ndarray
+    abs_row: np.ndarray
+    half_width: np.ndarray
+
 
 @lru_cache(maxsize=4)
 def cone_spans(resolution: float, cone_deg: float, reach: int) -> ConeSpans:

@@ -141,20 +141,28 @@ def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: in
         e0 = spans.first[degree, spans.reach - y]
         n = np.maximum(spans.first[degree, spans.reach + y + 1] - e0, 0)
     total = int(n.sum())
-    entry = np.arange(total, dtype=np.int64)
-    entry += np.repeat(e0 - (np.cumsum(n) - n), n)
-    w = spans.half_width.ravel()[np.repeat(t * (spans.reach + 1), n) + spans.abs_row[entry]]
-    ends = np.empty(2 * total, dtype=np.int64)  # run starts, then run ends
-    a, b = ends[:total], ends[total:]
-    np.maximum(spans.start[entry], -w, out=a)
+    apex = (beams.row[beam] - corner[0]) * stride + beams.col[beam] - corner[1]
+    # Per run in int32 where that holds every value (half the memory traffic of int64):
+    # table offsets, and flat indices up to the farthest apex plus a cone's rows.
+    largest = (int(np.abs(apex).max()) if len(apex) else 0) + (spans.reach + 2) * (stride + 2)
+    small = spans.small if max(largest, total) < 2 ** 31 else spans
+    itype = small.row.dtype
+    entry = np.arange(total, dtype=itype)
+    entry += np.repeat((e0 - (np.cumsum(n) - n)).astype(itype), n)
+    w = small.half_width.ravel()[np.repeat((t * (spans.reach + 1)).astype(itype), n)
+                                 + small.abs_row[entry]]
+    a = small.start[entry]
+    np.maximum(a, -w, out=a)
     w += 1
-    np.minimum(spans.stop[entry], w, out=b)
+    b = small.stop[entry]
+    np.minimum(b, w, out=b)
     np.maximum(b, a, out=b)
-    base = spans.row[entry]
+    base = small.row[entry]
     base *= stride
-    base += np.repeat((beams.row[beam] - corner[0]) * stride + beams.col[beam] - corner[1], n)
-    a += base
-    b += base
+    base += np.repeat(apex.astype(itype), n)
+    ends = np.empty(2 * total, dtype=np.int64)  # run starts, then run ends
+    np.add(a, base, out=ends[:total])
+    np.add(b, base, out=ends[total:])
     values = np.empty(2 * total)
     values[:total] = np.repeat(value, n)
     np.negative(values[:total], out=values[total:])
@@ -280,6 +288,8 @@ class BeamSums:
         for state in self._states:
             at = np.minimum(np.searchsorted(state.keys, keys), len(state.keys) - 1)
             i_new = np.flatnonzero(state.keys[at] == keys)  # keys sorted and unique in both
+            if len(state.keys) + len(keys) - 2 * len(i_new) >= best_cost:
+                continue  # even if every shared reading were the same, no cheaper
             i_old = at[i_new]
             same = (state.table[i_old] == table[i_new]).all(axis=1)
             kept_old = np.zeros(len(state.keys), dtype=bool)
