@@ -398,7 +398,8 @@ def test_cone_distances_pass_over_only_pairs_found_inf():
     segments = np.column_stack([ends, np.zeros(n)])
     want = nearest_in_cone(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
                            np.sin(sensors[:, 2]), segments, half)[0]
-    got = _distances_in_cones(sensors, segments, half)
+    got = _distances_in_cones(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
+                              np.sin(sensors[:, 2]), segments, half)
     assert np.array_equal(got, want)
     assert 0.05 < np.isfinite(want).mean() < 0.5
 

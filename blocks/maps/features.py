@@ -439,10 +439,11 @@ def _explained(checks: list[tuple[int, LinearFeature, np.ndarray, np.ndarray]],
 _CLEAR_OUT = 1e-9
 
 
-def _distances_in_cones(sensors: np.ndarray, segments: np.ndarray,
-                        half_angle: float) -> np.ndarray:
-    """:func:`sim2d.sonar.nearest_in_cone`'s distance for pairs of sensors (P, 3) and
-    segments (P, 5) of radius 0, working out only the pairs it might not find ``inf``.
+def _distances_in_cones(ox: np.ndarray, oy: np.ndarray, c: np.ndarray, s: np.ndarray,
+                        segments: np.ndarray, half_angle: float) -> np.ndarray:
+    """:func:`sim2d.sonar.nearest_in_cone`'s distance for pairs (all (P,)) of sensors at
+    (``ox``, ``oy``) heading (``c``, ``s``) = (cos, sin) and segments (P, 5) of radius 0,
+    working out only the pairs it might not find ``inf``.
 
     Why: most pairs a box test leaves are segments behind the sensor or to one side of
     its cone.  A segment whose two ends lie behind the sensor (along its heading:
@@ -452,9 +453,8 @@ def _distances_in_cones(sensors: np.ndarray, segments: np.ndarray,
     ``nearest_in_cone`` itself, element by element, so the result is the same.
     """
     from sim2d.sonar import nearest_in_cone
-    c, s = np.cos(sensors[:, 2]), np.sin(sensors[:, 2])
-    ax, ay = segments[:, 0] - sensors[:, 0], segments[:, 1] - sensors[:, 1]
-    bx, by = segments[:, 2] - sensors[:, 0], segments[:, 3] - sensors[:, 1]
+    ax, ay = segments[:, 0] - ox, segments[:, 1] - oy
+    bx, by = segments[:, 2] - ox, segments[:, 3] - oy
     px, py = c * ax + s * ay, -s * ax + c * ay  # the ends in the sensor's frame
     qx, qy = c * bx + s * by, -s * bx + c * by
     sa, ca = math.sin(half_angle), math.cos(half_angle)
@@ -462,9 +462,9 @@ def _distances_in_cones(sensors: np.ndarray, segments: np.ndarray,
     for nx, ny in ((sa, -ca), (sa, ca)):  # inside the wedge: nx * x + ny * y >= 0
         out |= (nx * px + ny * py < -_CLEAR_OUT) & (nx * qx + ny * qy < -_CLEAR_OUT)
     keep = np.flatnonzero(~out)
-    dist = np.full(len(sensors), np.inf)
-    dist[keep] = nearest_in_cone(sensors[keep, 0], sensors[keep, 1], c[keep], s[keep],
-                                 segments[keep], half_angle)[0]
+    dist = np.full(len(ox), np.inf)
+    dist[keep] = nearest_in_cone(ox[keep], oy[keep], c[keep], s[keep], segments[keep],
+                                 half_angle)[0]
     return dist
 
 
@@ -668,7 +668,9 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
         # as np.nonzero goes)
         which, i = np.nonzero(todo)
         segments = np.column_stack([ends, np.zeros(len(features))])[which]
-        dist = _distances_in_cones(sensors[i], segments, half)
+        # each sensor's heading once (cos and sin are worked out element by element)
+        c, s = np.cos(sensors[:, 2]), np.sin(sensors[:, 2])
+        dist = _distances_in_cones(sensors[i, 0], sensors[i, 1], c[i], s[i], segments, half)
         ranges[which, i] = np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf)
         out = np.full(len(sensors), np.inf)
         for key, row in zip(keys, ranges):
