@@ -198,6 +198,12 @@ def distance_to_obstacles(free: np.ndarray) -> np.ndarray:
     number back to within far less than 1/2, so rounding it and taking the
     float64 root gives scipy's value.  Larger grids, and grids without an
     obstacle, go to scipy.
+
+    Examples
+    --------
+    >>> distance_to_obstacles(np.array([[True, True, False], [True, True, True]]))
+    array([[2.        , 1.        , 0.        ],
+           [2.23606798, 1.41421356, 1.        ]])
     """
     import cv2
 
