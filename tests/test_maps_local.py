@@ -334,3 +334,125 @@ def test_line_tests_in_chunks_equal_line_tests_at_once(monkeypatch):
     whole = _line_tests(pts, 20, 0.04)
     monkeypatch.setattr(features, "LINE_TEST_ROWS", 7)  # 43 chunks, the last one short
     assert np.array_equal(_line_tests(pts, 20, 0.04), whole)
+
+
+# ---- the cheaper paths give what the plain ones give -----------------------------------------
+def test_cut_cones_leave_no_run_outside_the_rows_they_reach():
+    spans = cone_spans(0.1, 30.0, 12)
+    narrower = 0
+    for k in range(0, 360, 7):
+        for t in range(spans.limit + 1):
+            lo, hi = spans.reached_from[k, t], spans.reached_to[k, t]
+            y = spans.rows_below[t]
+            band = range(spans.first[k, spans.reach - y], spans.first[k, spans.reach + y + 1]) \
+                if y >= 0 else range(0)
+            assert lo >= hi or (band.start <= lo and hi <= band.stop)
+            for e in band:
+                if lo <= e < hi:
+                    continue
+                w = spans.half_width[t, spans.abs_row[e]]
+                assert max(spans.start[e], -w) >= min(spans.stop[e], w + 1), (k, t, e)
+                narrower += 1
+    assert narrower > 1000
+
+
+def test_run_ends_with_fewer_rows_or_in_int32_sum_the_same():
+    from blocks.maps.sectors import run_ends
+    rng = np.random.default_rng(9)
+    reach, size = 12, 60
+    beams, _ = _random_beams(rng, 200, size, reach)
+    assert exact_weights(np.concatenate([beams.free_value, beams.occ_value]), 400)
+    spans = cone_spans(0.1, 30.0, reach)
+    cells = size * (size + 1)
+
+    def grid(index, value, offset=0):
+        return np.bincount(index - offset, value, minlength=cells)
+
+    every_row = run_ends(spans, beams, (0, 0), size + 1)
+    fewer = run_ends(spans, beams, (0, 0), size + 1, exact=True)
+    assert every_row[0].dtype == fewer[0].dtype == np.int64
+    assert len(fewer[0]) < 0.9 * len(every_row[0])
+    assert np.array_equal(grid(*every_row), grid(*fewer))
+    # a grid so far from the corner that its indices need int64: the same runs, moved
+    far = (2 ** 31) // (size + 1) + 5
+    moved = run_ends(spans, beams, (-far, 0), size + 1, exact=True)
+    assert moved[0].min() > 2 ** 31
+    assert np.array_equal(moved[0] - far * (size + 1), fewer[0])
+    assert np.array_equal(moved[1], fewer[1])
+
+
+def test_cone_distances_pass_over_only_pairs_found_inf():
+    from blocks.maps.features import _distances_in_cones
+    from sim2d.sonar import nearest_in_cone
+    rng = np.random.default_rng(10)
+    n = 20000
+    sensors = np.column_stack([rng.uniform(0, 4, n), rng.uniform(0, 4, n),
+                               rng.uniform(-math.pi, math.pi, n)])
+    ends = rng.uniform(-1, 5, (n, 4))
+    # some segments through the sensor's cone edges, and some ending at the sensor
+    half = math.radians(15)
+    edge = sensors[:2000, 2] + rng.choice([-half, half], 2000)
+    ends[:2000, :2] = sensors[:2000, :2] + rng.uniform(0.5, 3, (2000, 1)) * np.column_stack(
+        [np.cos(edge), np.sin(edge)])
+    ends[2000:2500, 2:] = sensors[2000:2500, :2]
+    segments = np.column_stack([ends, np.zeros(n)])
+    want = nearest_in_cone(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
+                           np.sin(sensors[:, 2]), segments, half)[0]
+    got = _distances_in_cones(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
+                              np.sin(sensors[:, 2]), segments, half)
+    assert np.array_equal(got, want)
+    assert 0.05 < np.isfinite(want).mean() < 0.5
+
+
+def _merged_one_pair_at_a_time(features):
+    """merge_features without its shortcuts: every pair through _mergeable."""
+    from blocks.maps.features import _mergeable, _refit
+
+    def order(f):
+        return -f.support, -f.length
+
+    pool, again = sorted(features, key=order), True
+    while again:
+        again, out = False, []
+        for f in pool:
+            for i, g in enumerate(out):
+                if _mergeable(g, f, math.radians(6.0), 0.1, 0.3):
+                    out[i] = _refit(np.vstack([g.points, f.points]), g.normal)
+                    again = True
+                    break
+            else:
+                out.append(f)
+        pool = sorted(out, key=order)
+    return pool
+
+
+def test_merges_are_those_of_every_pair_tested_in_full(corridor):
+    poses, ranges = corridor
+    sensors = sensor_poses_along(poses, MOUNTS)
+    found = extract_linear_features(sensors, ranges, ranges < 3.95)
+    merged = merge_features(found)
+    assert len(merged) < len(found)
+    assert _same_features(merged, _merged_one_pair_at_a_time(found))
+
+
+def test_line_fits_without_mean_are_the_fits_with_it():
+    from blocks.maps.features import _mean_rows, _refit
+    rng = np.random.default_rng(11)
+    for n in (2, 3, 7, 8, 9, 16, 17, 40, 333):
+        points = rng.normal(0, 3, (n, 2)) + rng.uniform(-20, 20, 2)
+        assert np.array_equal(_mean_rows(points), points.mean(axis=0))
+        hint = rng.normal(0, 1, 2)
+        # _refit as it was written with mean()
+        centre, direction = points.mean(axis=0), None
+        d = points - centre
+        angle = 0.5 * math.atan2(2 * float(d[:, 0] @ d[:, 1]),
+                                 float(d[:, 0] @ d[:, 0]) - float(d[:, 1] @ d[:, 1]))
+        direction = np.array([math.cos(angle), math.sin(angle)])
+        normal = np.array([-direction[1], direction[0]])
+        normal = -normal if np.dot(normal, hint) < 0 else normal
+        along, across = (points - centre) @ direction, (points - centre) @ normal
+        got = _refit(points, hint)
+        assert np.array_equal(got.p0, centre + along.min() * direction)
+        assert np.array_equal(got.p1, centre + along.max() * direction)
+        assert np.array_equal(got.normal, normal)
+        assert got.residual == float(np.sqrt(np.mean(across ** 2)))

@@ -347,3 +347,20 @@ def test_goto_block_plans_on_a_connected_map_and_needs_one():
         make_goto(goals=[[5.0, 2.0]]).step(np.array([1.0, 2.0, 0.0]), goals=None, map=None)
     with pytest.raises(BlockError, match="goal 0"):
         make_goto(goals=[["a", 2.0]])
+
+
+@pytest.mark.parametrize("shape, density", [((1, 1), 0.5), ((3, 200), 0.05), ((257, 61), 0.01),
+                                            ((400, 500), 0.002), ((120, 90), 0.3)])
+def test_distance_to_obstacles_is_scipys_transform(shape, density):
+    from scipy import ndimage
+
+    from blocks.navigate.grid import distance_to_obstacles
+    rng = np.random.default_rng(shape[0] * 1000 + shape[1])
+    free = rng.random(shape) >= density
+    free[rng.integers(shape[0]), rng.integers(shape[1])] = False  # at least one obstacle
+    want = ndimage.distance_transform_edt(free)
+    got = distance_to_obstacles(free)
+    assert got.dtype == want.dtype == np.float64
+    assert np.array_equal(got, want)
+    assert np.array_equal(distance_to_obstacles(np.ones(shape, bool)),
+                          ndimage.distance_transform_edt(np.ones(shape, bool)))

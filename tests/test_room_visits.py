@@ -82,6 +82,22 @@ def test_find_door_refuses_what_is_not_a_door_yet(case):
     assert find_door(m, SIGN) is None
 
 
+def test_classes_at_points_are_the_map_classes_of_their_cells():
+    from blocks.navigate.rooms import _classes_at
+    m = corridor_and_room()
+    m.occupancy[::7, ::5] = 0.5  # some cells neither free nor occupied
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-1.0, 11.0, (40, 30, 2))  # some points off the map
+    occupied, free, _ = m.classes()
+    cols, rows = np.floor(xy[..., 0] / RES).astype(int), np.floor(xy[..., 1] / RES).astype(int)
+    inside = (rows >= 0) & (rows < m.shape[0]) & (cols >= 0) & (cols < m.shape[1])
+    r, c = np.clip(rows, 0, m.shape[0] - 1), np.clip(cols, 0, m.shape[1] - 1)
+    got_occupied, got_free = _classes_at(m, xy)
+    assert np.array_equal(got_occupied, occupied[r, c] & inside)
+    assert np.array_equal(got_free, free[r, c] & inside)
+    assert got_occupied.any() and got_free.any() and (~inside).any()
+
+
 def test_free_run_measures_free_floor_along_a_ray():
     m = corridor_and_room()
     assert free_run(m, (3.5, 4.5), (0.0, -1.0), max_distance=8.0) == pytest.approx(3.8, abs=0.05)

@@ -113,6 +113,13 @@ class ConeSpans:
         The largest useful code bound: every cell of a cone has a code below it.
     reach
         The cone radius (cells) of the tables.
+    reached_from, reached_to
+        (360, limit + 1) int: the runs of heading ``k`` on the rows that
+        ``{code < t}`` reaches are ``reached_from[k, t]`` to ``reached_to[k, t]``
+        (exclusive): the band of rows ``dy`` from the first to the last with a
+        cell of the cone below ``t``, narrower than ``|dy| <= rows_below[t]``
+        where the cone points along the rows; the runs outside it are cut
+        away entirely.
     """
 
     first: np.ndarray
@@ -124,6 +131,30 @@ class ConeSpans:
     rows_below: np.ndarray
     limit: int
     reach: int
+    reached_from: np.ndarray
+    reached_to: np.ndarray
+
+    @property
+    def small(self) -> SmallRuns:
+        """``row``, ``start``, ``stop``, ``abs_row`` and ``half_width`` as int32."""
+        found = self.__dict__.get("_small")
+        if found is None:
+            found = SmallRuns(*(np.ascontiguousarray(getattr(self, name), dtype=np.int32)
+                                for name in ("row", "start", "stop", "abs_row", "half_width")))
+            object.__setattr__(self, "_small", found)
+        return found
+
+
+@dataclass(frozen=True)
+class SmallRuns:
+    """The per-run tables of :class:`ConeSpans` in int32 (offsets of a few hundred cells),
+    for the inner loop of :func:`blocks.maps.sectors.run_ends`."""
+
+    row: np.ndarray
+    start: np.ndarray
+    stop: np.ndarray
+    abs_row: np.ndarray
+    half_width: np.ndarray
 
 
 @lru_cache(maxsize=4)
@@ -147,9 +178,12 @@ def cone_spans(resolution: float, cone_deg: float, reach: int) -> ConeSpans:
     tables = cone_tables(resolution, cone_deg, reach)
     outside = _outside(reach)
     first = np.zeros((360, 2 * reach + 2), dtype=np.int64)
+    limit = 2 * reach + 2  # codes inside a cone are at most 2 reach
+    reached_rows = np.zeros((360, limit + 1, 2), dtype=np.int64)  # dy from, dy to (inclusive)
     rows, starts, stops = [], [], []
     count = 0
     for k, (dr, dc, codes) in enumerate(tables):
+        reached_rows[k] = _rows_reached(codes.min(axis=1).astype(np.int64), dr, limit)
         inside = np.pad(codes < outside, ((0, 0), (1, 1))).astype(np.int8)
         step = np.diff(inside, axis=1)  # +1 where a run starts, -1 one past its end
         r_on, c_on = np.nonzero(step == 1)  # row by row, left to right
@@ -164,10 +198,26 @@ def cone_spans(resolution: float, cone_deg: float, reach: int) -> ConeSpans:
     quarter = np.round(rho * 2).astype(np.int64)[reach:, reach:]  # [|dy|, |dx|], as the tables
     if (np.diff(quarter, axis=1) < 0).any():
         raise AssertionError("range codes must not fall along a row")  # never, for hypot
-    limit = 2 * reach + 2  # codes inside a cone are at most 2 reach
     below = quarter[None, :, :] < np.arange(limit + 1)[:, None, None]
     half_width = below.sum(axis=2) - 1
     rows = np.arange(reach + 1)
     rows_below = np.where(half_width >= 0, rows[None, :], -1).max(axis=1)
     row, start, stop = row.astype(np.int64), start.astype(np.int64), stop.astype(np.int64)
-    return ConeSpans(first, row, start, stop, np.abs(row), half_width, rows_below, limit, reach)
+    heading = np.arange(360)[:, None]
+    reached_from = first[heading, reach + reached_rows[..., 0]]
+    reached_to = first[heading, reach + reached_rows[..., 1] + 1]
+    return ConeSpans(first, row, start, stop, np.abs(row), half_width, rows_below, limit, reach,
+                     reached_from, reached_to)
+
+
+def _rows_reached(least: np.ndarray, dr: int, limit: int) -> np.ndarray:
+    """(limit + 1, 2): for each code bound ``t``, the first and last row offset whose least
+    code (``least``, rows from offset ``dr`` on) is below ``t``; (0, -1) for none.  (A cone
+    on a grid is not quite convex: a row between two reached ones may be missed; its runs
+    are then cut away entirely, as outside the band.)"""
+    t = np.arange(limit + 1)[:, None]
+    reached = least[None, :] < t  # (limit + 1, rows)
+    some = reached.any(axis=1)
+    lo = np.argmax(reached, axis=1)
+    hi = reached.shape[1] - 1 - np.argmax(reached[:, ::-1], axis=1)
+    return np.where(some[:, None], np.column_stack([lo + dr, hi + dr]), np.array([0, -1]))

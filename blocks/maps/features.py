@@ -76,11 +76,23 @@ def sensor_poses_along(poses: np.ndarray, mounts: np.ndarray) -> np.ndarray:
 
 def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Centroid and unit direction of the total-least-squares line through ``points``."""
-    centre = points.mean(axis=0)
+    centre, direction, _ = _fit_line_offsets(points)
+    return centre, direction
+
+
+def _mean_rows(points: np.ndarray) -> np.ndarray:
+    """``points.mean(axis=0)``, the same sum and division, without ``mean``'s Python layer
+    (fitting lines to a few echoes is called tens of thousands of times per run)."""
+    return np.add.reduce(points, axis=0) / len(points)
+
+
+def _fit_line_offsets(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_fit_line`, and the points less the centroid."""
+    centre = _mean_rows(points)
     d = points - centre
     sxx, syy, sxy = float(d[:, 0] @ d[:, 0]), float(d[:, 1] @ d[:, 1]), float(d[:, 0] @ d[:, 1])
     angle = 0.5 * math.atan2(2 * sxy, sxx - syy)  # major axis of the scatter
-    return centre, np.array([math.cos(angle), math.sin(angle)])
+    return centre, np.array([math.cos(angle), math.sin(angle)]), d
 
 
 def _reflection_points(sensors: np.ndarray, ranges: np.ndarray, normal: np.ndarray,
@@ -104,10 +116,11 @@ def _feature_from(points: np.ndarray, sensors: np.ndarray, ranges: np.ndarray,
     reflection points give the line's offset and extent)."""
     centre, direction = _fit_line(points)
     normal = np.array([-direction[1], direction[0]])
-    if np.dot(sensors[:, :2].mean(axis=0) - centre, normal) < 0:
+    seen_from = _mean_rows(sensors[:, :2])
+    if np.dot(seen_from - centre, normal) < 0:
         normal = -normal
     wall = _reflection_points(sensors, ranges, normal, half_cone)
-    return _refit(wall, sensors[:, :2].mean(axis=0) - wall.mean(axis=0))
+    return _refit(wall, seen_from - _mean_rows(wall))
 
 
 def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
@@ -236,12 +249,14 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
             continue
         pts = axis[rows, j]
         step = pts[1:] - pts[:-1]
-        gaps = np.flatnonzero(np.hypot(step[:, 0], step[:, 1]) > max_gap) + 1
-        for part in np.split(rows, gaps):
-            key = None if memo is None else (j, ids[part].tobytes())
+        cuts = [0, *(np.flatnonzero(np.hypot(step[:, 0], step[:, 1]) > max_gap) + 1).tolist(),
+                len(rows)]
+        names = None if memo is None else ids[rows].tobytes()  # 8 bytes a scan
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            key = None if names is None else (j, names[8 * a:8 * b])  # ids[part].tobytes()
             found = None if key is None else memo.get("segment", key)
             if found is None:
-                todo.append((len(slots), j, part, key))
+                todo.append((len(slots), j, rows[a:b], key))
             slots.append(found)
     if todo:
         flat = np.concatenate([axis[part, j] for _, j, part, _ in todo])
@@ -419,6 +434,40 @@ def _explained(checks: list[tuple[int, LinearFeature, np.ndarray, np.ndarray]],
     return [bool(a / n >= share) for a, n in zip(agree.tolist(), sizes.tolist())]
 
 
+#: How far (m) a segment must lie beyond a sensor's back or a cone edge to be passed over by
+#: :func:`_distances_in_cones`: far more than the rounding of coordinates of metres.
+_CLEAR_OUT = 1e-9
+
+
+def _distances_in_cones(ox: np.ndarray, oy: np.ndarray, c: np.ndarray, s: np.ndarray,
+                        segments: np.ndarray, half_angle: float) -> np.ndarray:
+    """:func:`sim2d.sonar.nearest_in_cone`'s distance for pairs (all (P,)) of sensors at
+    (``ox``, ``oy``) heading (``c``, ``s``) = (cos, sin) and segments (P, 5) of radius 0,
+    working out only the pairs it might not find ``inf``.
+
+    Why: most pairs a box test leaves are segments behind the sensor or to one side of
+    its cone.  A segment whose two ends lie behind the sensor (along its heading:
+    ``x < -_CLEAR_OUT``), or both outside the same edge of its wedge, is ``inf`` there
+    too: its nearest point in the wedge lies between the ends, behind; and the wedge
+    clip leaves no part of it (``t0 > t1``).  The others are worked out by
+    ``nearest_in_cone`` itself, element by element, so the result is the same.
+    """
+    from sim2d.sonar import nearest_in_cone
+    ax, ay = segments[:, 0] - ox, segments[:, 1] - oy
+    bx, by = segments[:, 2] - ox, segments[:, 3] - oy
+    px, py = c * ax + s * ay, -s * ax + c * ay  # the ends in the sensor's frame
+    qx, qy = c * bx + s * by, -s * bx + c * by
+    sa, ca = math.sin(half_angle), math.cos(half_angle)
+    out = (px < -_CLEAR_OUT) & (qx < -_CLEAR_OUT)
+    for nx, ny in ((sa, -ca), (sa, ca)):  # inside the wedge: nx * x + ny * y >= 0
+        out |= (nx * px + ny * py < -_CLEAR_OUT) & (nx * qx + ny * qy < -_CLEAR_OUT)
+    keep = np.flatnonzero(~out)
+    dist = np.full(len(ox), np.inf)
+    dist[keep] = nearest_in_cone(ox[keep], oy[keep], c[keep], s[keep], segments[keep],
+                                 half_angle)[0]
+    return dist
+
+
 def _explains(feature: LinearFeature, sensors: np.ndarray, ranges: np.ndarray,
               cone_deg: float, tol: float, share: float = 0.8) -> bool:
     """Would a sonar read what these sensors read if the feature were the wall?
@@ -451,8 +500,11 @@ def _mergeable(a: LinearFeature, b: LinearFeature, angle_tol: float, offset_tol:
     return gap_along(a, b) <= max_gap
 
 
+_QUICK_SLACK = 1e-9  # m (and cosine): see _mergeable_quick
+
+
 def _mergeable_quick(a: tuple, b: tuple, cos_tol: float, offset_tol: float,
-                     max_gap: float, slack: float = 1e-9) -> bool | None:
+                     max_gap: float, slack: float = _QUICK_SLACK) -> bool | None:
     """:func:`_mergeable` in plain floats, from (nx, ny, x0, y0, x1, y1, ...) tuples; None
     when a test lands within ``slack`` of its bound, where the two roundings (a few
     units in the last place of metres) could disagree."""
@@ -488,15 +540,16 @@ def moved(f: LinearFeature, rotation: np.ndarray, pivot: np.ndarray,
 
 
 def _refit(points: np.ndarray, normal_hint: np.ndarray) -> LinearFeature:
-    centre, direction = _fit_line(points)
+    centre, direction, d = _fit_line_offsets(points)
     normal = np.array([-direction[1], direction[0]])
     if np.dot(normal, normal_hint) < 0:
         normal = -normal
-    along = (points - centre) @ direction
-    across = (points - centre) @ normal
+    along = d @ direction
+    across = d @ normal
+    # np.mean(across ** 2), the same sum and division
     return LinearFeature(p0=centre + along.min() * direction, p1=centre + along.max() * direction,
                          normal=normal, points=points,
-                         residual=float(np.sqrt(np.mean(across ** 2))))
+                         residual=float(np.sqrt(np.add.reduce(across ** 2) / len(across))))
 
 
 def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
@@ -544,14 +597,22 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
     while merged_any:
         merged_any = False
         out: list[LinearFeature] = []
+        facing: list[tuple[float, float]] = []  # each kept feature's normal
         for f in pool:
-            for i, g in enumerate(out):
+            fx, fy = numbers(f)[:2]
+            for i, (gx, gy) in enumerate(facing):
+                # most pairs face different ways: _mergeable_quick's first test, inline
+                if gx * fx + gy * fy - cos_tol < -_QUICK_SLACK:
+                    continue
+                g = out[i]
                 if mergeable(g, f):
                     out[i] = merged(g, f)
+                    facing[i] = numbers(out[i])[:2]
                     merged_any = True
                     break
             else:
                 out.append(f)
+                facing.append((fx, fy))
         pool = sorted(out, key=order)
     return pool
 
@@ -568,7 +629,7 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
     it was met with in the last call are looked up (same result: the
     geometry is worked out element by element, the nearest taken exactly).
     """
-    from sim2d.sonar import cone_ranges, nearest_in_cone
+    from sim2d.sonar import cone_ranges
 
     sensors = np.asarray(sensors, dtype=np.float64).reshape(-1, 3)
     if not features:
@@ -580,34 +641,41 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
         ids = np.asarray(ids, dtype=np.int64)
         memo.configure("predict", (float(cone_deg), float(max_range)))
         reach = max_range + 1e-6  # farther than this from a segment's box: cannot see it
-        parts = []
-        for f in features:
+        ends = np.array([[*f.p0, *f.p1] for f in features])  # (F, 4)
+        x0, x1 = np.minimum(ends[:, 0], ends[:, 2]), np.maximum(ends[:, 0], ends[:, 2])
+        y0, y1 = np.minimum(ends[:, 1], ends[:, 3]), np.maximum(ends[:, 1], ends[:, 3])
+        sx, sy = sensors[None, :, 0], sensors[None, :, 1]
+        todo = (sx >= (x0 - reach)[:, None]) & (sx <= (x1 + reach)[:, None]) \
+            & (sy >= (y0 - reach)[:, None]) & (sy <= (y1 + reach)[:, None])  # (F, M)
+        ranges = np.full(todo.shape, np.inf)
+        keys = []
+        matched: dict[int, tuple] = {}  # per id array of an earlier call: where ours are in it
+        for k, f in enumerate(features):
             key = memo.serial(f)[0]
+            keys.append(key)
             known = memo.get("predict", key)
-            ranges = np.full(len(sensors), np.inf)
-            todo = np.ones(len(sensors), dtype=bool)
             if known is not None:
                 known_ids, known_ranges = known
-                at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
-                todo = known_ids[at] != ids
-                ranges[~todo] = known_ranges[at[~todo]]
-            (x0, x1), (y0, y1) = sorted((f.p0[0], f.p1[0])), sorted((f.p0[1], f.p1[1]))
-            todo &= (sensors[:, 0] >= x0 - reach) & (sensors[:, 0] <= x1 + reach) \
-                & (sensors[:, 1] >= y0 - reach) & (sensors[:, 1] <= y1 + reach)
-            parts.append((key, ranges, np.flatnonzero(todo)))
-        # the new pairs of all features at once, element by element
-        i = np.concatenate([p[2] for p in parts])
-        segments = np.repeat(np.array([[*f.p0, *f.p1, 0.0] for f in features]),
-                             [len(p[2]) for p in parts], axis=0)
-        dist = nearest_in_cone(sensors[i, 0], sensors[i, 1], np.cos(sensors[i, 2]),
-                               np.sin(sensors[i, 2]), segments, half)[0]
-        found = np.split(np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf),
-                         np.cumsum([len(p[2]) for p in parts])[:-1])
+                match = matched.get(id(known_ids))
+                if match is None:  # the features kept by one call share its id array
+                    at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
+                    hit = known_ids[at] == ids
+                    match = matched[id(known_ids)] = (known_ids, hit, at[hit])
+                _, hit, at = match
+                todo[k] &= ~hit
+                ranges[k, hit] = known_ranges[at]
+        # the new pairs of all features at once, element by element (feature by feature,
+        # as np.nonzero goes)
+        which, i = np.nonzero(todo)
+        segments = np.column_stack([ends, np.zeros(len(features))])[which]
+        # each sensor's heading once (cos and sin are worked out element by element)
+        c, s = np.cos(sensors[:, 2]), np.sin(sensors[:, 2])
+        dist = _distances_in_cones(sensors[i, 0], sensors[i, 1], c[i], s[i], segments, half)
+        ranges[which, i] = np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf)
         out = np.full(len(sensors), np.inf)
-        for (key, ranges, todo), new in zip(parts, found):
-            ranges[todo] = new
-            memo.store("predict", key, (ids, ranges))
-            np.minimum(out, ranges, out=out)
+        for key, row in zip(keys, ranges):
+            memo.store("predict", key, (ids, row))
+            np.minimum(out, row, out=out)
         return out
     segments = np.array([[*f.p0, *f.p1, 0.0] for f in features])
     out = np.empty(len(sensors))

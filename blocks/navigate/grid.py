@@ -187,6 +187,36 @@ class NavGrid:
         return self.segment_clearance(p, q) > 0.0
 
 
+def distance_to_obstacles(free: np.ndarray) -> np.ndarray:
+    """``scipy.ndimage.distance_transform_edt(free)`` (float64), about three times sooner.
+
+    Why it is the same: the distance between two cell centres is the square
+    root of a whole number of cells squared, and scipy takes the (correctly
+    rounded) float64 root of that number.  OpenCV's exact transform
+    (Felzenszwalb and Huttenlocher) finds the same number of cells squared and
+    returns its float32 root; below ``2**22`` squaring that root gives the
+    number back to within far less than 1/2, so rounding it and taking the
+    float64 root gives scipy's value.  Larger grids, and grids without an
+    obstacle, go to scipy.
+
+    Examples
+    --------
+    >>> distance_to_obstacles(np.array([[True, True, False], [True, True, True]]))
+    array([[2.        , 1.        , 0.        ],
+           [2.23606798, 1.41421356, 1.        ]])
+    """
+    import cv2
+
+    free = np.asarray(free, dtype=bool)
+    h, w = free.shape
+    if h * h + w * w >= 2 ** 22 or free.all():
+        return ndimage.distance_transform_edt(free)
+    root = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    squared = root.astype(np.float64)
+    np.multiply(squared, squared, out=squared)
+    return np.sqrt(np.rint(squared, out=squared), out=squared)
+
+
 def inflate_occupied(obstacle: np.ndarray, resolution: float, origin: tuple[float, ...], *,
                      radius: float = DEFAULT_RADIUS, safe_clearance: float = 0.9,
                      clearance_weight: float = 4.0,
@@ -218,7 +248,7 @@ def inflate_occupied(obstacle: np.ndarray, resolution: float, origin: tuple[floa
     padded = np.pad(~obstacle, 1, constant_values=False)
     # Distance between cell centres, minus half a cell: the distance to the obstacle
     # cell's edge, i.e. to the wall surface as rasterised.
-    centre = ndimage.distance_transform_edt(padded)[1:-1, 1:-1]
+    centre = distance_to_obstacles(padded)[1:-1, 1:-1]
     clearance = np.clip(centre - 0.5, 0.0, None) * resolution
     blocked = obstacle | (clearance < radius)
     span = max(safe_clearance - radius, resolution)

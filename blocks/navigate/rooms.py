@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -97,15 +97,21 @@ class DoorEstimate:
 
 
 def _classes_at(occupancy_map: Any, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(occupied, free) at world points (..., 2); points off the map are neither."""
-    occupied, free, _ = occupancy_map.classes()
+    """(occupied, free) at world points (..., 2); points off the map are neither.
+
+    The map's classes (:meth:`~blocks.maps.mapio.OccupancyMap.classes`) of the
+    cells sampled only, not of the whole grid: a door search samples a few
+    thousand of its hundreds of thousands of cells.
+    """
     res, (ox, oy) = occupancy_map.resolution, occupancy_map.origin[:2]
     rows = np.floor((xy[..., 1] - oy) / res).astype(np.int64)
     cols = np.floor((xy[..., 0] - ox) / res).astype(np.int64)
-    h, w = occupied.shape
+    h, w = occupancy_map.shape
     inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
     r, c = np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)
-    return occupied[r, c] & inside, free[r, c] & inside
+    sampled = replace(occupancy_map, occupancy=np.asarray(occupancy_map.occupancy)[r, c])
+    occupied, free, _ = sampled.classes()
+    return occupied & inside, free & inside
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
