@@ -422,10 +422,12 @@ def _blobs(stats: np.ndarray, params: DetectorParams
     strip; two pieces spanning nearly the same columns, one just above the
     other, are joined into one candidate (the checks then judge the union).
     """
-    pieces = []
-    for k, (x, y, w, h, area) in enumerate(stats.tolist()):
-        if k and area >= 6 and w >= 3 and area >= 0.25 * w * h:
-            pieces.append((k, x, y, w, h))
+    width, height, size = stats[:, 2], stats[:, 3], stats[:, 4]
+    keep = (size >= 6) & (width >= 3) & (size >= 0.25 * width * height)
+    keep[0] = False  # the background
+    ks = np.flatnonzero(keep)
+    # (label, left, top, width, height, area) of each piece
+    pieces = [tuple(p) for p in np.column_stack([ks, stats[ks]]).tolist()]
     parent = {p[0]: p[0] for p in pieces}
 
     def root(k: int) -> int:
@@ -434,7 +436,7 @@ def _blobs(stats: np.ndarray, params: DetectorParams
             k = parent[k]
         return k
 
-    small = np.array([p for p in pieces if p[3] * p[4] <= 4000], dtype=np.int64).reshape(-1, 5)
+    small = np.array([p[:5] for p in pieces if p[3] * p[4] <= 4000], dtype=np.int64).reshape(-1, 5)
     if len(small) > 1:
         k, x, y, w, h = (small[:, i] for i in range(5))
         overlap = np.minimum((x + w)[:, None], (x + w)[None, :]) - np.maximum(x[:, None], x[None, :])
@@ -446,17 +448,19 @@ def _blobs(stats: np.ndarray, params: DetectorParams
                  & ((y + h)[None, :] > (y + h)[:, None]))
         for i, j in zip(*np.nonzero(same_columns & below)):
             parent[root(int(k[j]))] = root(int(k[i]))
-    groups: dict[int, list[tuple[int, int, int, int, int]]] = {}
+    groups: dict[int, list[tuple[int, int, int, int, int, int]]] = {}
     for p in pieces:
         groups.setdefault(root(p[0]), []).append(p)
     out = []
     for members in groups.values():
-        x0 = min(p[1] for p in members)
-        y0 = min(p[2] for p in members)
-        x1 = max(p[1] + p[3] for p in members)
-        y1 = max(p[2] + p[4] for p in members)
-        area = sum(int(stats[p[0], 4]) for p in members)
-        w, h = x1 - x0, y1 - y0
+        if len(members) == 1:
+            k, x0, y0, w, h, area = members[0]
+        else:
+            x0 = min(p[1] for p in members)
+            y0 = min(p[2] for p in members)
+            w = max(p[1] + p[3] for p in members) - x0
+            h = max(p[2] + p[4] for p in members) - y0
+            area = sum(p[5] for p in members)
         if area < params.min_area or w < params.min_width - 1 or h < params.min_height - 2:
             continue
         out.append(((x0, y0, w, h), tuple(p[0] for p in members)))
@@ -515,7 +519,7 @@ def _fit_edge(cols: np.ndarray, v: np.ndarray, free: np.ndarray, border: float,
     line are trimmed in a few passes: where a letter touches the border the
     body's extreme pixel lies inside the plate, never outside.
     """
-    if np.count_nonzero(free) < max(3, 0.25 * len(cols)):
+    if not _enough(free):
         return float(border), 0.0, 0.0, False
     u, v = cols[free].astype(np.float64), v[free]
     if not robust:
@@ -530,6 +534,11 @@ def _fit_edge(cols: np.ndarray, v: np.ndarray, free: np.ndarray, border: float,
             break
         keep, fit = new, None
     return (*(fit or _lsq(u[keep], v[keep])), True)
+
+
+def _enough(free: np.ndarray) -> bool:
+    """Whether an edge is seen on enough of its columns (``free``) to fit it (:func:`_fit_edge`)."""
+    return np.count_nonzero(free) >= max(3, 0.25 * len(free))
 
 
 def _fit_line(u: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
@@ -597,8 +606,11 @@ def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, 
         # a plate cut by the border may have letters reaching it: a column's
         # extreme body pixel is the plate's edge only if wall (not colourless
         # letters or rim) shows between it and the border
-        free_t &= _wall_beyond(grey_sums, x + inner, y + top[inner], -1)
-        free_b &= _wall_beyond(grey_sums, x + inner, y + bottom[inner], 1)
+        # (an edge seen on too few columns for a fit is the border whatever is beyond)
+        if _enough(free_t):
+            free_t &= _wall_beyond(grey_sums, x + inner, y + top[inner], -1)
+        if _enough(free_b):
+            free_b &= _wall_beyond(grey_sums, x + inner, y + bottom[inner], 1)
     a_t, b_t, r_t, seen_t = _fit_edge(inner, top[inner], free_t, -y, 1.0, cut)
     a_b, b_b, r_b, seen_b = _fit_edge(inner, bottom[inner], free_b, H - 1 - y, -1.0, cut)
     u0, u1 = float(cols[0]) - 0.5, float(cols[-1]) + 0.5
