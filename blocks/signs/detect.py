@@ -352,7 +352,7 @@ def components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    labels : (H, W) int32 array
+    labels : (H, W) uint16 array (int32 if the frame may hold 65,535 components)
         0 for the background, 1.. for the components.
     stats : (N, 5) int64 array
         Per label: left, top, width, height and area (OpenCV's ``CC_STAT_*``
@@ -364,8 +364,11 @@ def components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     >>> components(m)[1].tolist()
     [[0, 0, 0, 0, 0], [0, 0, 2, 1, 2], [2, 1, 2, 2, 3]]
     """
-    n, labels = cv2.connectedComponents(mask, connectivity=8)
     H, W = mask.shape
+    # 8-connected components are at most one per 2x2 block: 16-bit labels (half the
+    # memory to compare a blob's box against) whenever they fit
+    ltype = cv2.CV_16U if ((H + 1) // 2) * ((W + 1) // 2) < 65535 else cv2.CV_32S
+    n, labels = cv2.connectedComponents(mask, connectivity=8, ltype=ltype)
     padded = cv2.copyMakeBorder(mask, 0, 0, 1, 1, cv2.BORDER_CONSTANT, value=0)
     # the value changes at a run's first pixel and just past its last: in each
     # row (padded with zeros) and so in the whole frame, starts and ends alternate
