@@ -213,7 +213,9 @@ def level_floors(params: DetectorParams = DEFAULT_PARAMS) -> tuple[np.ndarray, n
     max_chroma * max + chroma_floor`` (computed in float32); levels being
     integers, that is ``min >= max - floor(limit)``. A plate-body pixel is
     also bright, ``min >= min_level``. Either mask is then one table lookup
-    and one comparison per pixel (:func:`_at_least`), with no float image.
+    and one comparison per pixel (:func:`_at_least`), with no float image;
+    :func:`detect_plates` makes the grey floor image by an affine rounding that
+    reproduces the table (:func:`grey_floor_image`), cheaper than the lookup.
 
     Returns
     -------
@@ -827,7 +829,9 @@ def _histogram(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray
 
 
 def _ranked(counts: np.ndarray, k: int) -> tuple[float, float]:
-    """The ``k``-th and ``k + 1``-th smallest of the levels counted in ``counts`` (as :func:`_order_stats`).
+    """The ``k``-th and ``k + 1``-th smallest of the levels counted in ``counts``.
+
+    As :func:`_order_stats` (the ``k``-th twice if it is the last).
 
     Examples
     --------
