@@ -176,6 +176,11 @@ class DetectorParams:
         """:func:`level_floors` of these parameters, made once (the detector's per-frame tables)."""
         return level_floors(self)
 
+    @cached_property
+    def allowance(self) -> tuple[float, float] | None:
+        """:func:`grey_floor_image`'s affine rounding for these parameters (None: use the table)."""
+        return _allowance_affine(self.max_chroma, self.chroma_floor, self.floors[0])
+
 
 DEFAULT_PARAMS = DetectorParams()
 
@@ -208,7 +213,9 @@ def level_floors(params: DetectorParams = DEFAULT_PARAMS) -> tuple[np.ndarray, n
     max_chroma * max + chroma_floor`` (computed in float32); levels being
     integers, that is ``min >= max - floor(limit)``. A plate-body pixel is
     also bright, ``min >= min_level``. Either mask is then one table lookup
-    and one comparison per pixel (:func:`_at_least`), with no float image.
+    and one comparison per pixel (:func:`_at_least`), with no float image;
+    :func:`detect_plates` makes the grey floor image by an affine rounding that
+    reproduces the table (:func:`grey_floor_image`), cheaper than the lookup.
 
     Returns
     -------
@@ -225,6 +232,47 @@ def level_floors(params: DetectorParams = DEFAULT_PARAMS) -> tuple[np.ndarray, n
     limit = levels * np.float32(params.max_chroma) + np.float32(params.chroma_floor)
     grey = np.maximum(np.arange(256) - np.minimum(np.floor(limit), 255).astype(int), 0)
     return grey.astype(np.uint8), np.maximum(grey, params.min_level).astype(np.uint8)
+
+
+def _allowance_affine(max_chroma: float, chroma_floor: float, grey_floor: np.ndarray
+                      ) -> tuple[float, float] | None:
+    """``(alpha, beta)`` such that ``hi - convertScaleAbs(hi, alpha, beta)`` is ``grey_floor[hi]``.
+
+    The chroma allowance ``floor(max_chroma * max + chroma_floor)`` is one
+    rounding of an affine function of the level (``cv2.convertScaleAbs``, a
+    vectorised pass), where the table needs a lookup per pixel (``cv2.LUT``,
+    several times slower). Rounding to the nearest from just under half a
+    level below is the floor unless the affine value falls just short of an
+    integer, which depends on the parameters: the candidate is checked on
+    every level, at every place in a row of SIMD lanes, against the table,
+    and None returned (use the table) if it differs anywhere.
+    """
+    alpha, beta = float(max_chroma), float(chroma_floor) - 0.5 + 0.005
+    levels = np.tile(np.arange(256, dtype=np.uint8), 302)  # 77,312 values
+    for shape in ((240, 320), (64, 1001), (7, 13)):
+        for offset in (0, 1, 3, 7, 17, 31):
+            hi = levels[offset:offset + shape[0] * shape[1]].reshape(shape)
+            grey = cv2.subtract(hi, cv2.convertScaleAbs(hi, alpha=alpha, beta=beta))
+            if not np.array_equal(grey, grey_floor[hi]):
+                return None
+    return alpha, beta
+
+
+def grey_floor_image(hi: np.ndarray, params: DetectorParams = DEFAULT_PARAMS) -> np.ndarray:
+    """``level_floors(params)[0][hi]``: per pixel, the darkest ``min`` level of a colourless pixel.
+
+    Computed by :attr:`DetectorParams.allowance`'s affine rounding where it
+    reproduces the table exactly (the default parameters), else by the table.
+
+    Examples
+    --------
+    >>> grey_floor_image(np.array([[0, 100, 255]], np.uint8)).tolist()
+    [[0, 83, 221]]
+    """
+    if params.allowance is None:
+        return cv2.LUT(hi, params.floors[0])
+    alpha, beta = params.allowance
+    return cv2.subtract(hi, cv2.convertScaleAbs(hi, alpha=alpha, beta=beta))
 
 
 def _at_least(lo: np.ndarray, hi: np.ndarray, floor: np.ndarray) -> np.ndarray:
@@ -265,8 +313,8 @@ def detect_plates(image: np.ndarray, camera: CameraModel,
                          f"model is {camera.width}x{camera.height}")
     # the body mask (as body_mask), and the rest of it only where a candidate needs it
     hi, level = smoothed_extremes(image)
-    grey_floor, body_floor = params.floors
-    mask = _at_least(level, hi, body_floor).view(np.uint8)
+    grey_floor = grey_floor_image(hi, params)  # (the body floor is this or min_level)
+    mask = (level >= cv2.max(grey_floor, params.min_level)).view(np.uint8)
     if cv2.countNonZero(mask) < params.min_area:
         return []  # no candidate can be big enough (most frames: walls, floor, no ceiling)
     labels, stats = components(mask)
@@ -274,10 +322,11 @@ def detect_plates(image: np.ndarray, camera: CameraModel,
     H = image.shape[0]
     grey_sums = None
     if any(y == 0 or y + h == H for (_, y, _, h), _ in blobs):  # (only these look at it)
-        grey_sums = cv2.integral(_at_least(level, hi, grey_floor).view(np.uint8))
+        grey_sums = cv2.integral((level >= grey_floor).view(np.uint8))
     out = []
     for box, ks in blobs:
-        feats = _measure(labels, ks, box, level, hi, grey_sums, camera, plate_height, params)
+        feats = _measure(labels, ks, box, level, hi, grey_sums, camera, plate_height, params,
+                         explain is None)
         reason = feats if isinstance(feats, str) else _reject(feats, params)
         if reason is None:
             out.append(_detection(feats, params))
@@ -305,7 +354,7 @@ def components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    labels : (H, W) int32 array
+    labels : (H, W) uint16 array (int32 if the frame may hold 65,535 components)
         0 for the background, 1.. for the components.
     stats : (N, 5) int64 array
         Per label: left, top, width, height and area (OpenCV's ``CC_STAT_*``
@@ -317,8 +366,11 @@ def components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     >>> components(m)[1].tolist()
     [[0, 0, 0, 0, 0], [0, 0, 2, 1, 2], [2, 1, 2, 2, 3]]
     """
-    n, labels = cv2.connectedComponents(mask, connectivity=8)
     H, W = mask.shape
+    # 8-connected components are at most one per 2x2 block: 16-bit labels (half the
+    # memory to compare a blob's box against) whenever they fit
+    ltype = cv2.CV_16U if ((H + 1) // 2) * ((W + 1) // 2) < 65535 else cv2.CV_32S
+    n, labels = cv2.connectedComponents(mask, connectivity=8, ltype=ltype)
     padded = cv2.copyMakeBorder(mask, 0, 0, 1, 1, cv2.BORDER_CONSTANT, value=0)
     # the value changes at a run's first pixel and just past its last: in each
     # row (padded with zeros) and so in the whole frame, starts and ends alternate
@@ -375,10 +427,12 @@ def _blobs(stats: np.ndarray, params: DetectorParams
     strip; two pieces spanning nearly the same columns, one just above the
     other, are joined into one candidate (the checks then judge the union).
     """
-    pieces = []
-    for k, (x, y, w, h, area) in enumerate(stats.tolist()):
-        if k and area >= 6 and w >= 3 and area >= 0.25 * w * h:
-            pieces.append((k, x, y, w, h))
+    width, height, size = stats[:, 2], stats[:, 3], stats[:, 4]
+    keep = (size >= 6) & (width >= 3) & (size >= 0.25 * width * height)
+    keep[0] = False  # the background
+    ks = np.flatnonzero(keep)
+    # (label, left, top, width, height, area) of each piece
+    pieces = [tuple(p) for p in np.column_stack([ks, stats[ks]]).tolist()]
     parent = {p[0]: p[0] for p in pieces}
 
     def root(k: int) -> int:
@@ -387,7 +441,7 @@ def _blobs(stats: np.ndarray, params: DetectorParams
             k = parent[k]
         return k
 
-    small = np.array([p for p in pieces if p[3] * p[4] <= 4000], dtype=np.int64).reshape(-1, 5)
+    small = np.array([p[:5] for p in pieces if p[3] * p[4] <= 4000], dtype=np.int64).reshape(-1, 5)
     if len(small) > 1:
         k, x, y, w, h = (small[:, i] for i in range(5))
         overlap = np.minimum((x + w)[:, None], (x + w)[None, :]) - np.maximum(x[:, None], x[None, :])
@@ -399,17 +453,19 @@ def _blobs(stats: np.ndarray, params: DetectorParams
                  & ((y + h)[None, :] > (y + h)[:, None]))
         for i, j in zip(*np.nonzero(same_columns & below)):
             parent[root(int(k[j]))] = root(int(k[i]))
-    groups: dict[int, list[tuple[int, int, int, int, int]]] = {}
+    groups: dict[int, list[tuple[int, int, int, int, int, int]]] = {}
     for p in pieces:
         groups.setdefault(root(p[0]), []).append(p)
     out = []
     for members in groups.values():
-        x0 = min(p[1] for p in members)
-        y0 = min(p[2] for p in members)
-        x1 = max(p[1] + p[3] for p in members)
-        y1 = max(p[2] + p[4] for p in members)
-        area = sum(int(stats[p[0], 4]) for p in members)
-        w, h = x1 - x0, y1 - y0
+        if len(members) == 1:
+            k, x0, y0, w, h, area = members[0]
+        else:
+            x0 = min(p[1] for p in members)
+            y0 = min(p[2] for p in members)
+            w = max(p[1] + p[3] for p in members) - x0
+            h = max(p[2] + p[4] for p in members) - y0
+            area = sum(p[5] for p in members)
         if area < params.min_area or w < params.min_width - 1 or h < params.min_height - 2:
             continue
         out.append(((x0, y0, w, h), tuple(p[0] for p in members)))
@@ -468,7 +524,7 @@ def _fit_edge(cols: np.ndarray, v: np.ndarray, free: np.ndarray, border: float,
     line are trimmed in a few passes: where a letter touches the border the
     body's extreme pixel lies inside the plate, never outside.
     """
-    if np.count_nonzero(free) < max(3, 0.25 * len(cols)):
+    if not _enough(free):
         return float(border), 0.0, 0.0, False
     u, v = cols[free].astype(np.float64), v[free]
     if not robust:
@@ -483,6 +539,11 @@ def _fit_edge(cols: np.ndarray, v: np.ndarray, free: np.ndarray, border: float,
             break
         keep, fit = new, None
     return (*(fit or _lsq(u[keep], v[keep])), True)
+
+
+def _enough(free: np.ndarray) -> bool:
+    """Whether an edge is seen on enough of its columns (``free``) to fit it (:func:`_fit_edge`)."""
+    return np.count_nonzero(free) >= max(3, 0.25 * len(free))
 
 
 def _fit_line(u: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
@@ -510,7 +571,8 @@ def _lsq(u: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
 
 def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, int],
              level: np.ndarray, hi: np.ndarray, grey_sums: np.ndarray | None,
-             camera: CameraModel, plate_height: float, params: DetectorParams) -> dict | str:
+             camera: CameraModel, plate_height: float, params: DetectorParams,
+             quick: bool = False) -> dict | str:
     """The features of one blob (or why it cannot be measured, or is too small).
 
     Coordinates in the returned ``quad`` are image pixels: ``u0, u1`` the
@@ -521,6 +583,13 @@ def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, 
     touches the top or bottom border). The shape
     checks come first, the cheapest first, and the size checks before the levels
     are measured.
+
+    With ``quick`` (the features of a rejected blob are not wanted, only
+    whether it is rejected) a blob whose text fails :func:`_reject`'s text
+    test is rejected ("text") before its ring is measured and its text's
+    colour: most bright blobs that get that far (the ceiling) have no text.
+    :func:`_reject` rejects a blob when any test fails, so testing one of them
+    sooner rejects the same blobs (the reason may differ).
     """
     x, y, w, h = box
     H, W = labels.shape
@@ -542,8 +611,11 @@ def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, 
         # a plate cut by the border may have letters reaching it: a column's
         # extreme body pixel is the plate's edge only if wall (not colourless
         # letters or rim) shows between it and the border
-        free_t &= _wall_beyond(grey_sums, x + inner, y + top[inner], -1)
-        free_b &= _wall_beyond(grey_sums, x + inner, y + bottom[inner], 1)
+        # (an edge seen on too few columns for a fit is the border whatever is beyond)
+        if _enough(free_t):
+            free_t &= _wall_beyond(grey_sums, x + inner, y + top[inner], -1)
+        if _enough(free_b):
+            free_b &= _wall_beyond(grey_sums, x + inner, y + bottom[inner], 1)
     a_t, b_t, r_t, seen_t = _fit_edge(inner, top[inner], free_t, -y, 1.0, cut)
     a_b, b_b, r_b, seen_b = _fit_edge(inner, bottom[inner], free_b, H - 1 - y, -1.0, cut)
     u0, u1 = float(cols[0]) - 0.5, float(cols[-1]) + 0.5
@@ -578,11 +650,18 @@ def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, 
     small = _too_small(hl, hr, u1 - u0, clip, params)
     if small:
         return small
-    body_level = _upper_quartile(level[y:y + h, x:x + w][blob])
-    ring_level = _ring_level(level, box)
+    if w * h < _HIST_MIN:
+        body_level = _upper_quartile(level[y:y + h, x:x + w][blob])
+    else:
+        body_level = _upper_quartile_of_counts(_histogram(level[y:y + h, x:x + w],
+                                                          blob.view(np.uint8)))
     quad = (x + u0, x + u1, y + t0, y + t1, y + s0, y + s1)
-    text_fill, text_span, text_chroma = _text(level, hi, quad, body_level,
-                                              params.text_dark_ratio)
+    text = _text_pixels(level, quad, body_level, params.text_dark_ratio)
+    text_fill, text_span = text[:2]
+    if quick and not _has_text(text_fill, text_span, params):
+        return "text"
+    text_chroma = _text_colour(level, hi, text)
+    ring_level = _ring_level(level, box)
     return {
         "box": box, "quad": quad, "slopes": (b_t, b_b), "heights": (hl, hr),
         "residual": max(r_t, r_b), "fill": fill, "body_level": body_level,
@@ -615,8 +694,7 @@ def _reject(f: dict, params: DetectorParams) -> str | None:
     if ring is None or not (1.0 - params.max_contrast <= ring / f["body_level"]
                             <= 1.0 - params.min_contrast):
         return "contrast"
-    if not (params.min_text_fill <= f["text_fill"] <= params.max_text_fill
-            and f["text_span"] >= params.min_text_span):
+    if not _has_text(f["text_fill"], f["text_span"], params):
         return "text"
     if f["text_chroma"] > params.max_text_chroma * f["body_level"]:
         return "text colour"
@@ -638,6 +716,12 @@ def _reject(f: dict, params: DetectorParams) -> str | None:
     elif not cut and lo > params.max_aspect:
         return "aspect"  # cut at a side: the heights are whole, the width only shorter
     return None
+
+
+def _has_text(text_fill: float, text_span: float, params: DetectorParams) -> bool:
+    """Whether a blob's dark share and its width share are a plate's text's."""
+    return (params.min_text_fill <= text_fill <= params.max_text_fill
+            and text_span >= params.min_text_span)
 
 
 def _aspect_range(corners: np.ndarray, camera: CameraModel, plate_height: float,
@@ -719,11 +803,60 @@ def _ring_level(level: np.ndarray, box: tuple[int, int, int, int]) -> float | No
     pad = max(2, round(0.25 * h))
     xa, xb = max(0, x - pad), min(W, x + w + pad)
     ya, yb = max(0, y - pad), min(H, y + h + pad)
-    values = np.concatenate([level[ya:y, xa:xb].ravel(), level[y + h:yb, xa:xb].ravel(),
-                             level[y:y + h, xa:x].ravel(), level[y:y + h, x + w:xb].ravel()])
-    if values.size < 4:
+    parts = [level[ya:y, xa:xb], level[y + h:yb, xa:xb], level[y:y + h, xa:x],
+             level[y:y + h, x + w:xb]]
+    n = sum(p.size for p in parts)
+    if n < 4:
         return None
-    return _median(values)
+    if n < _HIST_MIN:
+        return _median(np.concatenate([p.ravel() for p in parts]))
+    counts = np.zeros(256, np.int64)
+    for p in parts:
+        if p.size:
+            counts += _histogram(p)
+    return _median_of_counts(counts)
+
+
+# From this many values on, order statistics of levels come from their histogram
+# (cv2.calcHist, linear and ~10x cheaper than np.partition on the ceiling's
+# thousands of pixels); below it np.partition is cheaper. Both are exact.
+_HIST_MIN = 1500
+
+
+def _histogram(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """Counts (256, int64) of the uint8 levels of a 2-D array (where the uint8 ``mask`` is set)."""
+    return cv2.calcHist([values], [0], mask, [256], [0, 256]).ravel().astype(np.int64)
+
+
+def _ranked(counts: np.ndarray, k: int) -> tuple[float, float]:
+    """The ``k``-th and ``k + 1``-th smallest of the levels counted in ``counts``.
+
+    As :func:`_order_stats` (the ``k``-th twice if it is the last).
+
+    Examples
+    --------
+    >>> _ranked(np.bincount(np.array([7, 1, 3, 5]), minlength=256), 1)
+    (3.0, 5.0)
+    """
+    cum = np.cumsum(counts)
+    n = int(cum[-1])
+    a = int(np.searchsorted(cum, k + 1))  # the first level with more than k values up to it
+    b = a if k + 1 >= n else int(np.searchsorted(cum, k + 2))
+    return float(a), float(b)
+
+
+def _median_of_counts(counts: np.ndarray) -> float:
+    """:func:`_median` of the levels counted in ``counts``."""
+    n = int(counts.sum())
+    a, b = _ranked(counts, (n - 1) // 2)
+    return a if n % 2 else 0.5 * (a + b)
+
+
+def _upper_quartile_of_counts(counts: np.ndarray) -> float:
+    """:func:`_upper_quartile` of the levels counted in ``counts``."""
+    rank = 3 * (int(counts.sum()) - 1)
+    a, b = _ranked(counts, rank // 4)
+    return a + (b - a) * (rank % 4 / 4)
 
 
 def _order_stats(values: np.ndarray, k: int) -> tuple[float, float]:
@@ -765,16 +898,17 @@ def _upper_quartile(values: np.ndarray) -> float:
     return a + (b - a) * (rank % 4 / 4)
 
 
-def _text(level: np.ndarray, hi: np.ndarray, quad: tuple[float, ...], body_level: float,
-          dark_ratio: float = 0.75) -> tuple[float, float, float]:
-    """What is inside the plate: dark share, its width share and its colour.
+def _text_pixels(level: np.ndarray, quad: tuple[float, ...], body_level: float,
+                 dark_ratio: float) -> tuple[float, float, tuple | None]:
+    """What is inside the plate: dark share, its width share, and where the dark pixels are.
 
     Looks at the middle 60 % of the quad's height, 12 % of the height in from
     its sides. Returns the share of those pixels darker than ``dark_ratio``
     of the body's level, the share of the width the dark columns span, and
-    the median chroma (``max - min``, grey levels) of the dark pixels: text is
-    black, a wall seen through a gap is coloured. ``level`` and ``hi`` are the
-    frame's ``min`` and ``max`` channels.
+    None if there are no dark pixels, else ``(ya, yb, a, b, dark)``: the
+    bool mask ``dark`` of the dark pixels in the rows ``ya:yb`` and columns
+    ``a:b`` of ``level`` (the frame's ``min`` channel), for
+    :func:`_text_colour`.
     """
     u0, u1, t0, t1, s0, s1 = quad
     hmean = 0.5 * ((s0 - t0) + (s1 - t1))
@@ -783,7 +917,7 @@ def _text(level: np.ndarray, hi: np.ndarray, quad: tuple[float, ...], body_level
     H, W = level.shape
     a, b = max(a, 0), min(b, W - 1)
     if b - a < 1:
-        return 0.0, 0.0, 0.0
+        return 0.0, 0.0, None
     cols = np.arange(a, b + 1)
     frac = (cols - u0) / max(u1 - u0, 1e-9)
     top = t0 + (t1 - t0) * frac
@@ -793,21 +927,36 @@ def _text(level: np.ndarray, hi: np.ndarray, quad: tuple[float, ...], body_level
     r1 = np.minimum(np.floor(bot - 0.2 * hh), H - 1).astype(int)
     ya, yb = int(r0.min()), int(r1.max()) + 1
     if yb <= ya:
-        return 0.0, 0.0, 0.0
+        return 0.0, 0.0, None
     rows = np.arange(ya, yb)[:, None]
     inside = (rows >= r0[None, :]) & (rows <= r1[None, :])
     n_inside = int(inside.sum())
     if n_inside < 4:
-        return 0.0, 0.0, 0.0
+        return 0.0, 0.0, None
     patch = level[ya:yb, a:b + 1]
     dark = (patch < math.ceil(dark_ratio * body_level)) & inside  # (levels are integers)
     n_dark = int(dark.sum())
     if n_dark == 0:
-        return 0.0, 0.0, 0.0
+        return 0.0, 0.0, None
     dcols = np.flatnonzero(dark.any(axis=0))
     span = float(dcols[-1] - dcols[0] + 1) / len(cols)
-    colour = _median(hi[ya:yb, a:b + 1][dark] - patch[dark])  # chroma: max - min
-    return n_dark / n_inside, span, colour
+    return n_dark / n_inside, span, (ya, yb, a, b + 1, dark)
+
+
+def _text_colour(level: np.ndarray, hi: np.ndarray,
+                 text: tuple[float, float, tuple | None]) -> float:
+    """The median chroma (``max - min``, grey levels) of the dark pixels :func:`_text_pixels` found.
+
+    Text is black; a wall seen through a gap is coloured. ``level`` and ``hi``
+    are the frame's ``min`` and ``max`` channels. 0 if there are none.
+    """
+    if text[2] is None:
+        return 0.0
+    ya, yb, a, b, dark = text[2]
+    patch = level[ya:yb, a:b]
+    if dark.size < _HIST_MIN:
+        return _median(hi[ya:yb, a:b][dark] - patch[dark])
+    return _median_of_counts(_histogram(cv2.subtract(hi[ya:yb, a:b], patch), dark.view(np.uint8)))
 
 
 def _geometry(corners: np.ndarray, camera: CameraModel, plate_height: float,
