@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -801,21 +801,9 @@ def _plate_view(i: int, sign: Sign, corners3: np.ndarray, shot: _Shot, walls: Wa
         return None
     if u.max() < -0.5 or u.min() > width - 0.5 or v.max() < -0.5 or v.min() > height - 0.5:
         return None
-    # per-column occlusion: where does each column's ray meet the plate's line?
-    tx, ty = math.sin(sign.facing), -math.cos(sign.facing)
-    lo = max(0, math.ceil(u.min() - 0.5))
-    hi = min(width - 1, math.floor(u.max() + 0.5))
-    columns = np.zeros(width, dtype=bool)
-    if hi < lo:  # narrower than a column: take the nearest one
-        lo = hi = round(float(u.mean()))
-    if 0 <= lo <= hi < width:
-        a = yaw + shot.lens.angles[lo:hi + 1]
-        dx, dy = np.cos(a), np.sin(a)
-        sx, sy = sign.x - px, sign.y - py
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_plate = (sx * ty - sy * tx) / (dx * ty - dy * tx)
-        tol = _tolerance_along_ray(np.abs(dx * normal[0] + dy * normal[1]))
-        columns[lo:hi + 1] = ~(shot.wall_t[lo:hi + 1] < t_plate - tol)
+    columns = _columns_in_front(
+        shot, u, sign.x, sign.y, sign.facing, width,
+        lambda dx, dy: _tolerance_along_ray(np.abs(dx * normal[0] + dy * normal[1])))
     footprint = _footprint(u, v, columns, height)
     if footprint is None:
         return None
@@ -853,6 +841,34 @@ def _may_show(xy: np.ndarray, reach: np.ndarray, shot: _Shot, spec: CameraSpec) 
     side = reach * math.hypot(1.0, t) + eps
     return ((np.hypot(dx, dy) <= spec.max_range + eps) & (x + reach >= NEAR - eps)
             & (y - t * x <= side) & (y + t * x >= -side))
+
+
+def _columns_in_front(shot: _Shot, u: np.ndarray, x: float, y: float, facing: float,
+                      width: int, tolerance: Callable[[np.ndarray, np.ndarray], Any]
+                      ) -> np.ndarray:
+    """The image columns (bool, ``width``) in which an upright flat picture at (``x``, ``y``)
+    facing ``facing`` (rad), whose corners project to columns ``u``, is not behind a wall.
+
+    Each column's ray meets the picture's line at some distance; the column
+    shows it unless the column's first wall is nearer by more than
+    ``tolerance(dx, dy)`` (m, given the rays' directions). A picture narrower
+    than a column takes the nearest one.
+    """
+    px, py, yaw = shot.pose
+    tx, ty = math.sin(facing), -math.cos(facing)
+    lo = max(0, math.ceil(u.min() - 0.5))
+    hi = min(width - 1, math.floor(u.max() + 0.5))
+    columns = np.zeros(width, dtype=bool)
+    if hi < lo:
+        lo = hi = round(float(u.mean()))
+    if 0 <= lo <= hi < width:
+        a = yaw + shot.lens.angles[lo:hi + 1]
+        dx, dy = np.cos(a), np.sin(a)
+        sx, sy = x - px, y - py
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_picture = (sx * ty - sy * tx) / (dx * ty - dy * tx)
+        columns[lo:hi + 1] = ~(shot.wall_t[lo:hi + 1] < t_picture - tolerance(dx, dy))
+    return columns
 
 
 def _footprint(u: np.ndarray, v: np.ndarray, columns: np.ndarray,
@@ -1060,19 +1076,8 @@ def _object_view(i: int, obj: Any, entry: Any, shot: _Shot,
         return None
     if u.max() < -0.5 or u.min() > width - 0.5 or v.max() < -0.5 or v.min() > height - 0.5:
         return None
-    tx, ty = math.sin(facing), -math.cos(facing)
-    lo = max(0, math.ceil(u.min() - 0.5))
-    hi = min(width - 1, math.floor(u.max() + 0.5))
-    columns = np.zeros(width, dtype=bool)
-    if hi < lo:  # narrower than a column: take the nearest one
-        lo = hi = round(float(u.mean()))
-    if 0 <= lo <= hi < width:
-        a = yaw + shot.lens.angles[lo:hi + 1]
-        dx, dy = np.cos(a), np.sin(a)
-        sx, sy = ox - px, oy - py
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_obj = (sx * ty - sy * tx) / (dx * ty - dy * tx)
-        columns[lo:hi + 1] = ~(shot.wall_t[lo:hi + 1] < t_obj - OBJECT_TOLERANCE)
+    columns = _columns_in_front(shot, u, ox, oy, facing, width,
+                                lambda dx, dy: OBJECT_TOLERANCE)
     footprint = _footprint(u, v, columns, height)
     if footprint is None:
         return None
