@@ -46,13 +46,17 @@ TARGET_RSS_MB = 600.0
 def run(graph: Path, out: Path, *extra: str) -> tuple[dict, float]:
     """``semmap run`` in a process of its own: its run.json and its peak RSS (MB)."""
     exe = Path(sys.executable).with_name("semmap")
-    proc = subprocess.Popen([str(exe), "run", str(graph), "--world", WORLD, "--out", str(out),
-                             "-q", *extra], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            env={**os.environ, "CI": "true"})
-    _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode != 0:
-        raise RuntimeError(f"{graph.name} failed: {proc.stderr.read().decode()[-2000:]}")
+    # stderr to a file, not a pipe: nobody reads a pipe while wait4 waits, and a
+    # child writing more than the pipe holds would block for ever
+    with tempfile.TemporaryFile() as errors:
+        proc = subprocess.Popen([str(exe), "run", str(graph), "--world", WORLD, "--out",
+                                 str(out), "-q", *extra], stdout=subprocess.DEVNULL,
+                                stderr=errors, env={**os.environ, "CI": "true"})
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode != 0:
+            errors.seek(0)
+            raise RuntimeError(f"{graph.name} failed: {errors.read().decode()[-2000:]}")
     return json.loads((out / "run.json").read_text()), usage.ru_maxrss / 1024.0  # kB on Linux
 
 

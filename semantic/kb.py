@@ -270,8 +270,12 @@ class OwlPass:
             self._reasoner = reasonable.PyReasoner()
             self._reasoner.from_graph(list(want))
             incremental = False
+        try:
+            closure = self._reasoner.reason()
+        except BaseException:  # the next pass starts afresh, not from a half-loaded reasoner
+            self._reasoner, self.input, self._closure = None, frozenset(), None
+            raise
         self.input = want
-        closure = self._reasoner.reason()
         self._closure = OwlClosure(
             on_map=tuple(t for t in closure if t[0].startswith(_MAP_STR)),
             off_map=tuple(t for t in closure if not t[0].startswith(_MAP_STR)))

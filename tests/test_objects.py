@@ -344,7 +344,8 @@ def test_recognitions_are_the_same_with_and_without_the_early_reject(recogniser)
 def test_the_early_reject_is_for_sift_only():
     with pytest.raises(ValueError, match="SIFT"):
         RecogniserParams(feature="orb")
-    assert RecogniserParams(feature="orb", early_reject=False).gate is not None
+    assert ObjectRecogniser(params=RecogniserParams(feature="orb", early_reject=False)).gate is None
+    assert ObjectRecogniser(params=RecogniserParams()).gate is not None
 
 
 @pytest.mark.parametrize("kw, msg", [({"cell": 0}, "cell"), ({"margin": -1}, "margin"),

@@ -141,3 +141,25 @@ def test_an_owl_pass_reuses_extends_or_restarts_its_closure():
     assert not inc and all(t[0] != a[0] for t in shrunk.on_map)
     fresh, _ = OwlPass().close(axioms, {a, b})
     assert set(grown.on_map) == set(fresh.on_map) and set(grown.off_map) == set(fresh.off_map)
+
+
+def test_an_owl_pass_that_failed_does_not_give_its_last_closure_again(monkeypatch):
+    import reasonable
+    from rdflib import RDF
+
+    from semantic.kb import OwlPass
+    kb = live_kb([{"text": "MANAGER", "x": 8.35, "y": 5.1, "facing": 90.0}])
+    owl, axioms = OwlPass(), kb._owl_tbox
+    a = (kb._iri("S1"), RDF.type, kb._class("Office", {"place"}, "kind"))
+    b = (kb._iri("S2"), RDF.type, kb._class("Kitchen", {"place"}, "kind"))
+    first, _ = owl.close(axioms, {a})
+
+    def broken(self):
+        raise RuntimeError("reasoner crashed")
+    with monkeypatch.context() as m:
+        m.setattr(reasonable.PyReasoner, "reason", broken)
+        with pytest.raises(RuntimeError):
+            owl.close(axioms, {a, b})
+    again, incremental = owl.close(axioms, {a, b})
+    assert not incremental and again is not first  # a new reasoner, from scratch
+    assert (b[0], RDF.type, kb._class("Room", {"place"}, "kind")) in again.on_map

@@ -194,10 +194,12 @@ def distance_to_obstacles(free: np.ndarray) -> np.ndarray:
     root of a whole number of cells squared, and scipy takes the (correctly
     rounded) float64 root of that number.  OpenCV's exact transform
     (Felzenszwalb and Huttenlocher) finds the same number of cells squared and
-    returns its float32 root; below ``2**22`` squaring that root gives the
-    number back to within far less than 1/2, so rounding it and taking the
-    float64 root gives scipy's value.  Larger grids, and grids without an
-    obstacle, go to scipy.
+    returns its float32 root; for numbers below ``2**20`` (grids whose
+    diagonal is under 1,024 cells: the squared sums are whole float32 numbers,
+    and squaring the root is off by at most ``2**20 * 2**-23`` = 1/8, well
+    inside 1/2 even if OpenCV's root is a few ulps off), rounding its square
+    and taking the float64 root gives scipy's value.  Larger grids, and grids
+    without an obstacle, go to scipy.
 
     Examples
     --------
@@ -209,7 +211,7 @@ def distance_to_obstacles(free: np.ndarray) -> np.ndarray:
 
     free = np.asarray(free, dtype=bool)
     h, w = free.shape
-    if h * h + w * w >= 2 ** 22 or free.all():
+    if h * h + w * w >= 2 ** 20 or free.all():
         return ndimage.distance_transform_edt(free)
     root = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     squared = root.astype(np.float64)
