@@ -266,16 +266,27 @@ def test_kept_predictions_are_the_predictions(corridor):
     poses, ranges = corridor
     echo = ranges < 3.95
     memo = FeatureMemo()
-    for a, b in [(0, 150), (30, 200), (30, 260)]:
+    kept = []
+    # sliding windows, as LocalMaps builds them, and one window again (its every feature kept)
+    for a, b in [(0, 150), (30, 200), (30, 260), (30, 260), (40, 260)]:
         index = np.arange(a, b)
         sensors = sensor_poses_along(poses[index], MOUNTS)
-        features = merge_features(extract_linear_features(sensors, ranges[index], echo[index]))
+        # features from the memo: those the windows share are the same objects, whose
+        # kept predictions the later windows look up
+        features = merge_features(extract_linear_features(sensors, ranges[index], echo[index],
+                                                          ids=index, memo=memo), memo=memo)
         flat = sensors.reshape(-1, 3)
         keys = (index[:, None] * 16 + np.arange(16)).ravel()
         want = predict_ranges(flat, features, 30.0, 4.0)
+        hits = memo.hits
         assert np.array_equal(predict_ranges(flat, features, 30.0, 4.0, ids=keys, memo=memo),
                               want)
+        kept.append((memo.hits - hits, len(features)))
         assert np.isfinite(want).mean() > 0.5
+    # (hits, features) per window: none at first; some kept rows, all, and some matched
+    # into another window's sensor ids
+    assert kept[0][0] == 0 and kept[2][0] > 0 and kept[3][0] == kept[3][1] > 0
+    assert kept[4][0] > 0
 
 
 def test_the_quick_merge_test_agrees_or_defers():
