@@ -1,0 +1,29 @@
+"""Contracts every shipped graph keeps: ground truth is for scoring only."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from blocks.core.loader import load_graph
+
+ROOT = Path(__file__).resolve().parents[1]
+GRAPHS = sorted(p for p in (ROOT / "graphs").rglob("*.yaml"))
+GROUND_TRUTH = {"sim2d.true_pose"}  # blocks that read the simulator's answers
+
+
+@pytest.mark.parametrize("path", GRAPHS, ids=lambda p: str(p.relative_to(ROOT / "graphs")))
+def test_ground_truth_feeds_only_scoring_inputs(path):
+    graph = load_graph(path)  # flattened: subgraphs' edges included
+    truth = {n for n, node in graph.nodes.items() if node.type_name in GROUND_TRUTH}
+    for edge in graph.edges:
+        if edge.src.node in truth:
+            assert edge.dst.port == "truth", (
+                f"{path.name}: {edge.src.node}.{edge.src.port} -> {edge.dst.node}."
+                f"{edge.dst.port}: the true pose may only feed a scorer's 'truth' input; "
+                "decisions take odometry (or a localiser)")
+
+
+def test_the_contract_sees_the_main_graphs():
+    names = {p.name for p in GRAPHS}
+    assert {"semantic_mapping.yaml", "mapping.yaml", "ask.yaml"} <= names
