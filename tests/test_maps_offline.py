@@ -217,6 +217,88 @@ def test_right_angled_walls_correct_heading_along_walls_never_seen_before(buildi
     assert right_position < 0.15 * odom_position, (right_position, odom_position)
 
 
+def _random_feature(rng: np.random.Generator, near: np.ndarray | None = None):
+    """A short wall piece anywhere (or, with ``near``, almost along that feature)."""
+    if near is None:
+        centre, angle = rng.uniform(0, 10, 2), rng.uniform(-np.pi, np.pi)
+    else:
+        along = np.array([near.normal[1], -near.normal[0]])
+        centre = (near.p0 + near.p1) / 2 + along * rng.uniform(-1.5, 1.5) \
+            + near.normal * rng.choice([rng.uniform(-0.4, 0.4), 0.1, -0.35, 0.35])
+        angle = math.atan2(along[1], along[0]) + rng.choice(
+            [rng.normal(0, 0.1), math.radians(8.0), math.radians(6.0), 0.0])
+    direction = np.array([math.cos(angle), math.sin(angle)])
+    points = centre + np.outer(np.linspace(-0.6, 0.6, 7), direction)
+    points += rng.normal(0, 0.005, points.shape)
+    from blocks.maps.features import _refit
+    return _refit(points, np.array([-direction[1], direction[0]]))
+
+
+def test_drift_walls_prefilter_keeps_every_wall_the_full_tests_pass():
+    """``_MappedWalls.near`` only skips walls that ``_matches`` and ``_mergeable`` reject,
+    also for features at the tests' bounds (8 and 6 degrees, 0.1 and 0.35 m off)."""
+    from blocks.maps.drift import _matches, _MappedWalls
+    from blocks.maps.features import _mergeable
+    rng = np.random.default_rng(3)
+    p = DriftCorrection()
+    walls = _MappedWalls()
+    for _ in range(150):
+        walls.append(_random_feature(rng))
+    cos_tol = math.cos(math.radians(p.max_angle_deg))
+    passed = {"match": 0, "merge": 0}
+    for k in range(400):
+        f = _random_feature(rng, walls.features[k % len(walls.features)])
+        match = set(walls.near(f, cos_tol, p.max_offset))
+        merge = set(walls.near(f, cos_tol, 0.1, ends=True))
+        for i, g in enumerate(walls.features):
+            if _matches(f, g, p) is not None:
+                assert i in match
+                passed["match"] += 1
+            if _mergeable(g, f, math.radians(p.max_angle_deg), 0.1, 0.3):
+                assert i in merge
+                passed["merge"] += 1
+        assert len(match) < len(walls.features) // 4  # and it does skip most walls
+    assert passed["match"] > 100 and passed["merge"] > 15  # the tests were exercised
+
+
+def test_beams_drawn_at_once_equal_beams_drawn_one_by_one():
+    """``_draw_beams`` gives, to the bit, the float32 sums of adding one reading's cone
+    after the other (the offline map's definition)."""
+    from blocks.maps.cones import cone_tables, cone_window
+    from blocks.maps.offline import _draw_beams, beam_codes, cone_reach, grid_extent
+    rng = np.random.default_rng(5)
+    p = OfflineMapParams()
+    n = 400
+    sensors = np.column_stack([rng.uniform(0, 4, n), rng.uniform(0, 3, n),
+                               rng.uniform(-np.pi, np.pi, n)])
+    free_to = rng.uniform(-0.1, 4.0, n)
+    hit_at = np.where(rng.random(n) < 0.6, free_to + 0.02, np.nan)
+    w_free, w_occ = rng.choice([1.0, 0.7, 0.25], n), rng.choice([1.0, 0.5], n)
+    reach = cone_reach(4.0, p)
+    corner, shape = grid_extent(sensors, reach, p.resolution)
+    log_odds, seen = np.zeros(shape, np.float32), np.zeros(shape, bool)
+    _draw_beams(log_odds, seen, corner, sensors, free_to, hit_at, w_free, w_occ, p, 30.0, reach)
+
+    expected, expected_seen = np.zeros(shape, np.float32), np.zeros(shape, bool)
+    tables = cone_tables(p.resolution, 30.0, reach)
+    col, row, degrees, free, lo, hi = beam_codes(sensors, free_to, hit_at, p.resolution,
+                                                 p.arc_thickness)
+    for i in range(n):
+        far = max(free[i], hi[i])
+        window = cone_window(tables[degrees[i]], row[i] - corner[1], col[i] - corner[0],
+                             far // 2 + 1) if far > 0 else None
+        if window is None:
+            continue
+        rows, cols, sub = window
+        delta = np.where(sub < free[i], np.float32(p.l_free * w_free[i]), np.float32(0))
+        if np.isfinite(hit_at[i]):
+            delta[(sub >= lo[i]) & (sub <= hi[i])] = p.l_occ * w_occ[i]
+        expected[rows, cols] += delta
+        expected_seen[rows, cols] |= delta != 0
+    assert np.array_equal(log_odds, expected) and np.array_equal(seen, expected_seen)
+    assert seen.sum() > 1000
+
+
 def test_parameters_are_checked():
     with pytest.raises(ValueError):
         OfflineMapParams(l_free=0.2)

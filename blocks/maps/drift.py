@@ -147,8 +147,9 @@ def correct_odometry(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
     poses = np.asarray(poses, dtype=np.float64)
     out = poses.copy()
     motion = _RigidMotion()
-    mapped: list[LinearFeature] = []
+    mapped = _MappedWalls()
     axis = _BuildingAxis(p) if p.rectilinear else None
+    cos_merge = math.cos(math.radians(p.max_angle_deg))
     for start in range(0, len(poses), p.chunk):
         part = slice(start, min(start + p.chunk, len(poses)))
         out[part] = motion.applied(poses[part])
@@ -163,9 +164,10 @@ def correct_odometry(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
             if delta is not None:
                 local = _move_chunk(motion, delta, poses, out, part, local)
         for f in local:
-            for i, g in enumerate(mapped):
+            for i in mapped.near(f, cos_merge, 0.1, ends=True):
+                g = mapped.features[i]
                 if _mergeable(g, f, math.radians(p.max_angle_deg), 0.1, 0.3):
-                    mapped[i] = _refit(np.vstack([g.points, f.points]), g.normal)
+                    mapped.replace(i, _refit(np.vstack([g.points, f.points]), g.normal))
                     break
             else:
                 mapped.append(f)
@@ -248,13 +250,65 @@ def _local_features(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
                                    min_length=0.2)
 
 
-def _alignment(local: list[LinearFeature], mapped: list[LinearFeature], pivot: np.ndarray,
+class _MappedWalls:
+    """The walls mapped so far, in order, with their normals and first ends side by side.
+
+    Most mapped walls face another way than a given feature, or lie far from
+    its line; a few products with all of them rule those out, and only the
+    rest are tested in full, in their order (so every test gives what it gave
+    over all walls).
+    """
+
+    SLACK = 1e-9  # a cosine or offset (m) this close to its bound is tested in full
+
+    def __init__(self) -> None:
+        self.features: list[LinearFeature] = []
+        self._normals = np.empty((16, 2))
+        self._starts = np.empty((16, 2))
+
+    def __bool__(self) -> bool:
+        return bool(self.features)
+
+    def append(self, f: LinearFeature) -> None:
+        n = len(self.features)
+        if n == len(self._normals):
+            self._normals = np.concatenate([self._normals, np.empty_like(self._normals)])
+            self._starts = np.concatenate([self._starts, np.empty_like(self._starts)])
+        self.features.append(f)
+        self.replace(n, f)
+
+    def replace(self, i: int, f: LinearFeature) -> None:
+        self.features[i] = f
+        self._normals[i], self._starts[i] = f.normal, f.p0
+
+    def near(self, f: LinearFeature, cos_tol: float, max_offset: float,
+             ends: bool = False) -> list[int]:
+        """The indices (increasing) of the walls that may face within ``cos_tol`` (cosine)
+        of ``f`` with ``f``'s middle (or, with ``ends``, both its ends) within
+        ``max_offset`` of their line: every wall the full tests could pass."""
+        n = len(self.features)
+        normals, starts = self._normals[:n], self._starts[:n]
+        close = normals @ f.normal >= cos_tol - self.SLACK
+
+        def offset(point: np.ndarray) -> np.ndarray:
+            return np.abs(np.einsum("ij,ij->i", point - starts, normals))
+        if ends:
+            far = np.maximum(offset(f.p0), offset(f.p1))
+        else:
+            far = offset((f.p0 + f.p1) / 2)
+        close &= far <= max_offset + self.SLACK
+        return np.flatnonzero(close).tolist()
+
+
+def _alignment(local: list[LinearFeature], mapped: _MappedWalls, pivot: np.ndarray,
                p: DriftCorrection) -> np.ndarray | None:
     """The correction that aligns the chunk's features with the mapped ones, if any match."""
     points, normals, offsets = [], [], []
+    cos_match = math.cos(math.radians(p.max_angle_deg))
     for f in local:
         best = None
-        for g in mapped:
+        for i in mapped.near(f, cos_match, p.max_offset):
+            g = mapped.features[i]
             offset = _matches(f, g, p)
             if offset is not None and (best is None or offset < best[0]):
                 best = (offset, g)

@@ -172,19 +172,24 @@ def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
     tables = cone_tables(p.resolution, cone_deg, reach)
     col, row, degrees, free_code, lo_code, hi_code = beam_codes(
         sensors, free_to, hit_at, p.resolution, p.arc_thickness)
-    ix, iy = col - corner[0], row - corner[1]
-    hit = np.isfinite(hit_at)
-    for i in range(len(sensors)):
-        far = max(free_code[i], hi_code[i])
-        if far <= 0:
-            continue
-        window = cone_window(tables[degrees[i]], iy[i], ix[i], far // 2 + 1)
+    far = np.maximum(free_code, hi_code)
+    todo = np.flatnonzero(far > 0)  # beams that clear or darken something
+    # per beam, as Python numbers (the loop runs ~10^5 times: no numpy scalars in it)
+    clear = (p.l_free * w_free[todo]).astype(np.float32)
+    darken = (p.l_occ * w_occ[todo]).astype(np.float32)
+    hit = np.isfinite(hit_at[todo])
+    zero = np.float32(0)
+    for k, (i, iy, ix, degree, radius, free, lo, hi, hits) in enumerate(zip(
+            todo.tolist(), (row[todo] - corner[1]).tolist(), (col[todo] - corner[0]).tolist(),
+            degrees[todo].tolist(), (far[todo] // 2 + 1).tolist(), free_code[todo].tolist(),
+            lo_code[todo].tolist(), hi_code[todo].tolist(), hit.tolist())):
+        window = cone_window(tables[degree], iy, ix, radius)
         if window is None:
             continue
         rows, cols, sub = window
-        delta = np.where(sub < free_code[i], np.float32(p.l_free * w_free[i]), np.float32(0))
-        if hit[i]:
-            delta[(sub >= lo_code[i]) & (sub <= hi_code[i])] = p.l_occ * w_occ[i]
+        delta = np.where(sub < free, clear[k], zero)
+        if hits:
+            delta[(sub >= lo) & (sub <= hi)] = darken[k]
         log_odds[rows, cols] += delta
         seen[rows, cols] |= delta != 0
 
