@@ -14,7 +14,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from blocks.core.atomic import atomic_write_figure, atomic_write_text
-from blocks.maps.mapio import OccupancyMap, map_rgba
+from blocks.maps.mapio import OccupancyMap, display_sized, map_rgba
 from semantic.places import PlaceMap
 
 
@@ -142,10 +142,11 @@ def draw_place_map(path: str | Path, pm: PlaceMap, m: OccupancyMap,
     ox, oy = float(m.origin[0]), float(m.origin[1])
     extent = (ox, ox + w * m.resolution, oy, oy + h * m.resolution)
     width, height = extent[1] - extent[0], extent[3] - extent[2]
-    fig, ax = plt.subplots(figsize=(size_px / 100, max(3.0, size_px / 100 * height / width) + 0.6),
-                           dpi=100)
+    fig_h = max(3.0, size_px / 100 * height / width) + 0.6
+    fig, ax = plt.subplots(figsize=(size_px / 100, fig_h), dpi=100)
     try:
-        ax.imshow(rgb, origin="lower", extent=extent, interpolation="nearest", zorder=0)
+        ax.imshow(display_sized(rgb, size_px, 100 * fig_h), origin="lower", extent=extent,
+                  interpolation="nearest", zorder=0)
         for place in pm.places:
             if len(place.polygon) >= 3:
                 ring = np.vstack([place.polygon, place.polygon[:1]])

@@ -548,3 +548,20 @@ def test_installed_command_reports_a_malformed_trajectory(tmp_path):
     assert proc.returncode == 2 and "Traceback" not in proc.stderr + proc.stdout
     assert "t.csv:2" in proc.stderr and "'oops'" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_map_pictures_are_drawn_no_larger_than_their_figure():
+    """A map picture larger than its figure is sampled down (nearest cell) to fit, aspect
+    kept and colours unmixed; one that fits is drawn as it is."""
+    from blocks.maps.mapio import display_sized, map_rgba
+    occupancy = np.zeros((1100, 1500))
+    occupancy[::10] = 1.0  # a wall on every tenth row
+    occupancy[:, :300] = np.nan
+    picture = map_rgba(OccupancyMap(occupancy, 0.025, (0.0, 0.0, 0.0)))
+    small = display_sized(picture, 1200, 900)
+    assert small.shape[1] <= 1200 and small.shape[0] <= 900 and small.shape[1] >= 1199
+    assert small.shape[0] / small.shape[1] == pytest.approx(1100 / 1500, abs=2e-3)
+    assert {tuple(c) for c in small.reshape(-1, 4)} <= {tuple(c) for c in picture.reshape(-1, 4)}
+    assert (small[..., :3] == 0).any() and (small[:, 0, :3] == [175, 160, 150]).all()
+    fits = display_sized(picture[:500, :800], 1200, 900)
+    assert np.shares_memory(fits, picture)  # the picture itself, not a copy

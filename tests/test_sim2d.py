@@ -178,3 +178,23 @@ def test_two_robots_see_and_bump_each_other():
     a, b = sim.robots["a"], sim.robots["b"]
     assert a.collisions == 1 and b.collisions == 1
     assert b.pose[0] - a.pose[0] == pytest.approx(0.5, abs=0.01)  # touching, not overlapping
+
+
+def test_cone_ranges_near_are_cone_ranges_to_the_bit():
+    """Culling the capsules far from a chunk of sensors changes no range: along a path
+    (compact chunks) and for sensors scattered over the floor (chunks that cull little)."""
+    from sim2d.sonar import cone_ranges_near
+    from sim2d.world import load_world
+    from sim2d.worlds import world_path
+    world = load_world(world_path("office"))
+    rng = np.random.default_rng(4)
+    steps = rng.normal(0, 0.05, (3000, 2)).cumsum(axis=0) + (15.0, 5.5)
+    path = np.column_stack([steps, rng.uniform(-np.pi, np.pi, 3000)])
+    scattered = np.column_stack([rng.uniform(-2, 32, 3000), rng.uniform(-2, 22, 3000),
+                                 rng.uniform(-np.pi, np.pi, 3000)])
+    half = math.radians(15.0)
+    for sensors, chunk in ((path, 100), (path, 1), (scattered, 100)):
+        expected, _ = cone_ranges(sensors, world.segments, half, 4.0)
+        got = cone_ranges_near(sensors, world.segments, half, 4.0, chunk=chunk)
+        assert np.array_equal(got, expected)
+        assert np.isfinite(expected).mean() > 0.3

@@ -618,7 +618,7 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
 
 
 def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg: float,
-                   max_range: float, chunk: int = 1024, *, ids: np.ndarray | None = None,
+                   max_range: float, chunk: int = 256, *, ids: np.ndarray | None = None,
                    memo: FeatureMemo | None = None) -> np.ndarray:
     """The range at which each sensor's cone first meets a feature (``inf`` if none).
 
@@ -629,7 +629,7 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
     it was met with in the last call are looked up (same result: the
     geometry is worked out element by element, the nearest taken exactly).
     """
-    from sim2d.sonar import cone_ranges
+    from sim2d.sonar import cone_ranges_near
 
     sensors = np.asarray(sensors, dtype=np.float64).reshape(-1, 3)
     if not features:
@@ -678,8 +678,4 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
             np.minimum(out, row, out=out)
         return out
     segments = np.array([[*f.p0, *f.p1, 0.0] for f in features])
-    out = np.empty(len(sensors))
-    for start in range(0, len(sensors), chunk):
-        part = sensors[start:start + chunk]
-        out[start:start + chunk], _ = cone_ranges(part, segments, half, max_range)
-    return out
+    return cone_ranges_near(sensors, segments, half, max_range, chunk)

@@ -34,8 +34,8 @@ from blocks.core.atomic import atomic_write_bytes, atomic_write_text
 from blocks.core.errors import GraphError, SemmapError
 from blocks.core.yamlsrc import line_of, load_yaml_file
 
-__all__ = ["MapError", "OccupancyMap", "UNKNOWN_RGB", "map_rgba", "occupancy_map_from_world",
-           "read_map", "write_map"]
+__all__ = ["MapError", "OccupancyMap", "UNKNOWN_RGB", "display_sized", "map_rgba",
+           "occupancy_map_from_world", "read_map", "write_map"]
 
 #: Pixel value of an unknown cell (``map_saver``'s choice: p = 50/255 = 0.196).
 UNKNOWN_PIXEL = 205
@@ -229,6 +229,23 @@ def map_rgba(m: OccupancyMap) -> np.ndarray:
     rgba[occupied, :3] = 0
     rgba[np.isnan(p), :3] = UNKNOWN_RGB
     return rgba
+
+
+def display_sized(picture: np.ndarray, width_px: float, height_px: float) -> np.ndarray:
+    """``picture`` (H, W, C) sampled down (nearest cell) to fit ``width_px`` x ``height_px``,
+    or as it is when it fits already.
+
+    matplotlib converts an image to floats to draw it, some 60 bytes a pixel
+    (about 100 MB for a 1,100 x 1,500-cell office map): a picture no larger
+    than the figure it is drawn in looks the same and costs a figure's worth.
+    """
+    import cv2
+    h, w = picture.shape[:2]
+    factor = max(w / max(width_px, 1.0), h / max(height_px, 1.0))
+    if factor <= 1.0:
+        return picture
+    size = (max(1, math.ceil(w / factor)), max(1, math.ceil(h / factor)))
+    return cv2.resize(np.ascontiguousarray(picture), size, interpolation=cv2.INTER_NEAREST)
 
 
 def write_map(yaml_path: str | Path, m: OccupancyMap, *, preview: bool = True,

@@ -174,24 +174,30 @@ def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
         sensors, free_to, hit_at, p.resolution, p.arc_thickness)
     far = np.maximum(free_code, hi_code)
     todo = np.flatnonzero(far > 0)  # beams that clear or darken something
-    # per beam, as Python numbers (the loop runs ~10^5 times: no numpy scalars in it)
     clear = (p.l_free * w_free[todo]).astype(np.float32)
     darken = (p.l_occ * w_occ[todo]).astype(np.float32)
     hit = np.isfinite(hit_at[todo])
     zero = np.float32(0)
-    for k, (i, iy, ix, degree, radius, free, lo, hi, hits) in enumerate(zip(
-            todo.tolist(), (row[todo] - corner[1]).tolist(), (col[todo] - corner[0]).tolist(),
-            degrees[todo].tolist(), (far[todo] // 2 + 1).tolist(), free_code[todo].tolist(),
-            lo_code[todo].tolist(), hi_code[todo].tolist(), hit.tolist())):
-        window = cone_window(tables[degree], iy, ix, radius)
-        if window is None:
-            continue
-        rows, cols, sub = window
-        delta = np.where(sub < free, clear[k], zero)
-        if hits:
-            delta[(sub >= lo) & (sub <= hi)] = darken[k]
-        log_odds[rows, cols] += delta
-        seen[rows, cols] |= delta != 0
+    # the loop runs ~10^5 times: its numbers are Python's (no numpy scalars), made a
+    # part at a time (as lists, all of them would hold ~40 MB)
+    part = 4096
+    for first in range(0, len(todo), part):
+        at = slice(first, first + part)
+        beam = todo[at]
+        for k, iy, ix, degree, radius, free, lo, hi, hits in zip(
+                range(first, first + len(beam)), (row[beam] - corner[1]).tolist(),
+                (col[beam] - corner[0]).tolist(), degrees[beam].tolist(),
+                (far[beam] // 2 + 1).tolist(), free_code[beam].tolist(),
+                lo_code[beam].tolist(), hi_code[beam].tolist(), hit[at].tolist()):
+            window = cone_window(tables[degree], iy, ix, radius)
+            if window is None:
+                continue
+            rows, cols, sub = window
+            delta = np.where(sub < free, clear[k], zero)
+            if hits:
+                delta[(sub >= lo) & (sub <= hi)] = darken[k]
+            log_odds[rows, cols] += delta
+            seen[rows, cols] |= delta != 0
 
 
 def _draw_features(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],

@@ -37,10 +37,10 @@ def sonar_visible(world: World, sensors: np.ndarray, cone_deg: float = 30.0,
     cone_deg, max_range
         The sonar's cone angle (deg) and maximum range (m).
     chunk
-        Sensors whose true ranges are found at once: :func:`sim2d.sonar.cone_ranges`
-        holds some twenty (sensors, wall capsules) float64 temporaries at a time,
-        ~11 MB for 256 sensors against 250 capsules (~175 MB for 4096), and small
-        chunks stay in cache, which is faster too.
+        Sensors whose true ranges are found at once, against the wall capsules
+        near them (:func:`sim2d.sonar.cone_ranges_near`): the cone geometry
+        holds some twenty (sensors, capsules) float64 temporaries at a time,
+        at most ~11 MB for 256 sensors against 250 capsules (~175 MB for 4096).
 
     Returns
     -------
@@ -49,17 +49,14 @@ def sonar_visible(world: World, sensors: np.ndarray, cone_deg: float = 30.0,
         (rows y up): True where some cone reached, up to and including the
         surface it would echo from.
     """
-    from sim2d.sonar import cone_ranges
+    from sim2d.sonar import cone_ranges_near
 
     truth = occupancy_map_from_world(world)
     res = float(truth.resolution)
     shape = truth.occupancy.shape
     sensors = np.asarray(sensors, dtype=np.float64).reshape(-1, 3)
-    ranges = np.empty(len(sensors))
-    half = math.radians(cone_deg) / 2
-    for start in range(0, len(sensors), chunk):
-        ranges[start:start + chunk], _ = cone_ranges(sensors[start:start + chunk],
-                                                     world.segments, half, max_range)
+    ranges = cone_ranges_near(sensors, world.segments, math.radians(cone_deg) / 2, max_range,
+                              chunk)
     ranges = np.minimum(ranges, max_range)
     reach = int(math.ceil(max_range / res)) + 2
     tables = cone_tables(res, cone_deg, reach)

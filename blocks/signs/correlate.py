@@ -464,11 +464,13 @@ def draw_hybrid_map(occupancy_map, signs: Sequence[Mapping[str, Any]], path: str
         extent = (pts[:, 0].min() - 1, pts[:, 0].max() + 1, pts[:, 1].min() - 1,
                   pts[:, 1].max() + 1)
     width, height = max(extent[1] - extent[0], 1.0), max(extent[3] - extent[2], 1.0)
-    fig, ax = plt.subplots(figsize=(size_px / 100, max(3.0, size_px / 100 * height / width) + 0.6),
-                           dpi=100)
+    from blocks.maps.mapio import display_sized
+    fig_h = max(3.0, size_px / 100 * height / width) + 0.6
+    fig, ax = plt.subplots(figsize=(size_px / 100, fig_h), dpi=100)
     try:
         if rgb is not None:
-            ax.imshow(rgb, origin="lower", extent=extent, interpolation="nearest", zorder=0)
+            ax.imshow(display_sized(rgb, size_px, 100 * fig_h), origin="lower", extent=extent,
+                      interpolation="nearest", zorder=0)
         if traj is not None and traj.ndim == 2 and len(traj):
             ax.plot(traj[:, 0], traj[:, 1], color="#1f77b4", lw=1.0, alpha=0.8,
                     label="robot path", zorder=2)

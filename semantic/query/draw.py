@@ -34,10 +34,12 @@ def draw_plan(path: str | Path, plan: TaskPlan, qm: QueryMap, *,
     ox, oy = float(m.origin[0]), float(m.origin[1])
     extent = (ox, ox + w * m.resolution, oy, oy + h * m.resolution)
     aspect = (extent[3] - extent[2]) / (extent[1] - extent[0])
-    fig, ax = plt.subplots(figsize=(size_px / 100, max(3.0, size_px / 100 * aspect) + 0.8),
-                           dpi=100)
+    from blocks.maps.mapio import display_sized
+    fig_h = max(3.0, size_px / 100 * aspect) + 0.8
+    fig, ax = plt.subplots(figsize=(size_px / 100, fig_h), dpi=100)
     try:
-        ax.imshow(rgb, origin="lower", extent=extent, interpolation="nearest", zorder=0)
+        ax.imshow(display_sized(rgb, size_px, 100 * fig_h), origin="lower", extent=extent,
+                  interpolation="nearest", zorder=0)
         for info in qm.places.values():
             if info.name and info.centre:
                 ax.text(*info.centre, info.name, fontsize=7, ha="center", va="center",
