@@ -177,7 +177,9 @@ def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
     clear = (p.l_free * w_free[todo]).astype(np.float32)
     darken = (p.l_occ * w_occ[todo]).astype(np.float32)
     hit = np.isfinite(hit_at[todo])
-    zero = np.float32(0)
+    # each beam's log-odds by range code, looked up for its cone's cells: a cell gets
+    # ``clear`` below ``free``, ``darken`` from ``lo`` to ``hi`` (the arc wins), else 0
+    by_code = np.zeros(int(max(t[2].max() for t in tables)) + 1, dtype=np.float32)
     # the loop runs ~10^5 times: its numbers are Python's (no numpy scalars), made a
     # part at a time (as lists, all of them would hold ~40 MB)
     part = 4096
@@ -193,9 +195,11 @@ def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
             if window is None:
                 continue
             rows, cols, sub = window
-            delta = np.where(sub < free, clear[k], zero)
-            if hits:
-                delta[(sub >= lo) & (sub <= hi)] = darken[k]
+            by_code[:max(free, 0)] = clear[k]
+            if hits and hi >= lo:
+                by_code[max(lo, 0):hi + 1] = darken[k]
+            delta = by_code[sub]
+            by_code[:max(free, hi + 1, 0)] = 0
             log_odds[rows, cols] += delta
             seen[rows, cols] |= delta != 0
 
