@@ -217,6 +217,48 @@ def test_right_angled_walls_correct_heading_along_walls_never_seen_before(buildi
     assert right_position < 0.15 * odom_position, (right_position, odom_position)
 
 
+def test_sonar_visibility_is_each_cone_drawn_up_to_its_range():
+    """The row-run sums give the cells of every cone up to one cell past its true range,
+    as drawing the cones one by one does; sensors whose cones leave the floor plan's
+    padded grid (on any side) see nothing of it."""
+    from blocks.maps.cones import cone_tables, cone_window
+    from blocks.maps.mapio import occupancy_map_from_world
+    from blocks.maps.visibility import sonar_visible
+    from sim2d.sonar import cone_ranges
+    from sim2d.world import load_world
+    from sim2d.worlds import world_path
+
+    world = load_world(world_path("office"))
+    truth = occupancy_map_from_world(world)
+    res, (h, w) = float(truth.resolution), truth.occupancy.shape
+    rng = np.random.default_rng(8)
+    n = 300
+    sensors = np.column_stack([truth.origin[0] + rng.uniform(0.6, w * res - 0.6, n),
+                               truth.origin[1] + rng.uniform(0.6, h * res - 0.6, n),
+                               rng.uniform(-math.pi, math.pi, n)])
+    ranges = np.minimum(cone_ranges(sensors, world.segments, math.radians(15), 4.0)[0], 4.0)
+    reach = int(math.ceil(4.0 / res)) + 2
+    tables, pad = cone_tables(res, 30.0, reach), reach + 1
+    expected = np.zeros((h + 2 * pad, w + 2 * pad), bool)
+    for (x, y, heading), r in zip(sensors, ranges):
+        limit = math.floor(2 * (r / res + 1.0))
+        window = cone_window(tables[round(math.degrees(heading)) % 360],
+                             math.floor((y - truth.origin[1]) / res) + pad,
+                             math.floor((x - truth.origin[0]) / res) + pad, limit // 2 + 1)
+        rows, cols, codes = window
+        expected[rows, cols] |= codes <= limit
+    seen = sonar_visible(world, sensors)
+    assert np.array_equal(seen, expected[pad:pad + h, pad:pad + w]) and seen.sum() > 10000
+    far = [(truth.origin[0] - 6.0, truth.origin[1] - 6.0),
+           (truth.origin[0] + w * res + 6.0, truth.origin[1] + h * res + 6.0)]
+    assert not sonar_visible(world, np.array([[x, y, a] for x, y in far
+                                              for a in (0.0, 1.6, 3.1, -1.6)])).any()
+    x1, y1 = truth.origin[0] + w * res + 0.5, truth.origin[1] + h * res + 0.5
+    for away in (0.0, 0.8, 1.6):  # facing away: the cones leave the padded grid
+        assert not sonar_visible(world, np.array([[x1, y1, away]])).any()
+    assert sonar_visible(world, np.array([[x1, y1, -2.3]])).any()  # facing the floor plan
+
+
 def _random_feature(rng: np.random.Generator, near: np.ndarray | None = None):
     """A short wall piece anywhere (or, with ``near``, almost along that feature)."""
     if near is None:
