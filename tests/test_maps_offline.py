@@ -56,6 +56,27 @@ def test_collinear_echoes_become_one_feature_on_the_wall():
         assert f.residual < 0.03
 
 
+def test_merging_many_pieces_of_a_wall_keeps_no_intermediate_merges():
+    """A long wall seen in 400 pieces merges into one, in memory proportional to its echoes
+    (each merge is a new feature holding all the echoes so far: kept, they add up to the
+    square of the wall's length, hundreds of MB on a long run)."""
+    import tracemalloc
+
+    from blocks.maps.features import _refit
+    rng = np.random.default_rng(2)
+    pieces = []
+    for k in range(400):
+        x = 0.05 * k + np.linspace(0.0, 0.06, 60)
+        points = np.column_stack([x, 1.0 + rng.normal(0, 0.003, 60)])
+        pieces.append(_refit(points, np.array([0.0, -1.0])))
+    tracemalloc.start()
+    merged = merge_features(pieces)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert len(merged) == 1 and merged[0].support == 400 * 60
+    assert peak < 8 * merged[0].points.nbytes, peak  # not 400 copies of the wall
+
+
 def test_oblique_echoes_are_placed_on_the_wall_not_on_the_beam_axis():
     """A sensor 45 degrees off the wall hears its cone edge; its echoes must land on the wall."""
     diagonal = [j for j, m in enumerate(MOUNTS) if 30 < abs(math.degrees(m[2])) < 60]

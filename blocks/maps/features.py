@@ -596,6 +596,7 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
     merged_any = True
     while merged_any:
         merged_any = False
+        in_pool = {id(f) for f in pool}
         out: list[LinearFeature] = []
         facing: list[tuple[float, float]] = []  # each kept feature's normal
         for f in pool:
@@ -609,11 +610,15 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
                     out[i] = merged(g, f)
                     facing[i] = numbers(out[i])[:2]
                     merged_any = True
+                    if id(g) not in in_pool:  # a merge made in this pass, merged again:
+                        del known[id(g)]  # let it go (a long wall's would add up to GBs)
                     break
             else:
                 out.append(f)
                 facing.append((fx, fy))
         pool = sorted(out, key=order)
+        kept = {id(f) for f in pool}
+        known = {key: entry for key, entry in known.items() if key in kept}
     return pool
 
 
