@@ -38,19 +38,35 @@ def true_map(world: Any) -> OccupancyMap:
 
 def polygon_mask_on_grid(polygon: np.ndarray, shape: tuple[int, int], resolution: float,
                          origin: tuple[float, float, float]) -> np.ndarray:
-    """Cells (row 0 = lowest y) whose centres are inside a polygon (even-odd rule)."""
+    """Cells (row 0 = lowest y) whose centres are inside a polygon (even-odd rule).
+
+    Row by row: a cell centre is inside when an odd number of the polygon's
+    edges cross its row to its right, so each row needs its crossings, not a
+    test of every edge at every cell (a whole-grid test per edge held a
+    generated floor's scoring at over 100 MB).
+    """
     h, w = shape
     xs = origin[0] + (np.arange(w) + 0.5) * resolution
     ys = origin[1] + (np.arange(h) + 0.5) * resolution
-    px, py = np.meshgrid(xs, ys)
     inside = np.zeros((h, w), dtype=bool)
     pts = np.asarray(polygon, dtype=np.float64)
-    for (x1, y1), (x2, y2) in zip(pts, np.roll(pts, -1, axis=0)):
-        if y1 == y2:
-            continue
+    x1, y1 = pts[:, 0], pts[:, 1]
+    x2, y2 = np.roll(x1, -1), np.roll(y1, -1)
+    sloped = y1 != y2
+    x1, y1, x2, y2 = x1[sloped], y1[sloped], x2[sloped], y2[sloped]
+    if len(x1) == 0:
+        return inside
+    low, high = min(y1.min(), y2.min()), max(y1.max(), y2.max())
+    rows = np.flatnonzero((ys >= low) & (ys <= high))  # rows no edge spans: outside
+    for r in rows.tolist():
+        py = ys[r]
         crosses = (y1 > py) != (y2 > py)
-        x_cross = x1 + (py - y1) * (x2 - x1) / (y2 - y1)
-        inside ^= crosses & (px < x_cross)
+        if not crosses.any():
+            continue
+        a1, b1, a2, b2 = x1[crosses], y1[crosses], x2[crosses], y2[crosses]
+        x_cross = np.sort(a1 + (py - b1) * (a2 - a1) / (b2 - b1))
+        right = len(x_cross) - np.searchsorted(x_cross, xs, side="right")  # crossings > x
+        inside[r] = (right & 1).astype(bool)
     return inside
 
 

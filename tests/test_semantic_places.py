@@ -175,3 +175,31 @@ def test_score_penalises_a_wrong_name():
     rows = {r["name"]: r for r in score["rooms"]}
     assert rows["KITCHEN"]["iou"] < 0.1 and not rows["KITCHEN"]["one_place"]
     assert rows["ADMIN"]["iou"] > 0.9
+
+
+def test_polygon_mask_is_the_even_odd_rule_at_cell_centres():
+    """Row-by-row crossings give the cells a whole-grid even-odd test gives, also for
+    self-crossing polygons, horizontal edges and vertices on cell centres."""
+    from semantic.place_score import polygon_mask_on_grid
+
+    def reference(poly, shape, res, origin):
+        h, w = shape
+        px, py = np.meshgrid(origin[0] + (np.arange(w) + 0.5) * res,
+                             origin[1] + (np.arange(h) + 0.5) * res)
+        inside = np.zeros(shape, bool)
+        for (x1, y1), (x2, y2) in zip(poly, np.roll(poly, -1, axis=0)):
+            if y1 != y2:
+                inside ^= ((y1 > py) != (y2 > py)) & (px < x1 + (py - y1) * (x2 - x1) / (y2 - y1))
+        return inside
+
+    rng = np.random.default_rng(6)
+    shapes = [np.array([[1, 1], [8, 1], [8, 6], [1, 6], [1, 4], [6, 4], [6, 3], [1, 3]], float),
+              np.array([[0.625, 0.625], [9.125, 0.625], [9.125, 0.625], [5.125, 8.875]])]
+    shapes += [rng.uniform(0, 10, (rng.integers(3, 12), 2)) for _ in range(60)]
+    shapes += [np.round(rng.uniform(0, 10, (6, 2)) * 4) / 4 + 0.125 for _ in range(30)]
+    for poly in shapes:
+        for res, shape, origin in [(0.25, (48, 44), (-0.5, -0.5, 0.0)),
+                                   (0.1, (90, 120), (0.05, -0.3, 0.0))]:
+            expected = reference(poly, shape, res, origin)
+            assert np.array_equal(polygon_mask_on_grid(poly, shape, res, origin), expected)
+    assert reference(shapes[0], (48, 44), 0.25, (-0.5, -0.5, 0.0)).sum() > 100
