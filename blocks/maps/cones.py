@@ -18,7 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["ConeSpans", "cone_spans", "cone_tables", "cone_window"]
+__all__ = ["ConeSpans", "cone_extents", "cone_spans", "cone_tables", "cone_window"]
 
 
 def _offsets(reach: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -88,6 +88,18 @@ def cone_window(table: tuple[int, int, np.ndarray], row: int, col: int, radius: 
     return (slice(row + dr + r0, row + dr + r1), slice(col + dc + c0, col + dc + c1),
             codes[r0:r1, c0:c1])
 
+
+
+def cone_extents(tables: tuple[tuple[int, int, np.ndarray], ...], degrees: np.ndarray,
+                 radius: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray],
+                                               tuple[np.ndarray, np.ndarray]]:
+    """Where :func:`cone_window` would put many readings' windows, without cutting them:
+    the rows and the columns (offsets from the apex: the first, and one past the last)
+    of the cones of heading ``degrees`` cut to ``radius`` cells, per reading."""
+    dr, dc, h, w = (np.array(v)[degrees] for v in zip(*[(t[0], t[1], *t[2].shape)
+                                                        for t in tables]))
+    return ((dr + np.maximum(0, -radius - dr), dr + np.minimum(h, radius + 1 - dr)),
+            (dc + np.maximum(0, -radius - dc), dc + np.minimum(w, radius + 1 - dc)))
 
 @dataclass(frozen=True)
 class ConeSpans:

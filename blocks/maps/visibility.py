@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .cones import cone_spans, cone_tables
+from .cones import cone_extents, cone_spans, cone_tables
 from .mapio import occupancy_map_from_world
 from .sectors import Beams, sum_beams
 
@@ -67,7 +67,7 @@ def sonar_visible(world: World, sensors: np.ndarray, cone_deg: float = 30.0,
     degrees = np.round(np.degrees(sensors[:, 2])).astype(np.int64) % 360
     limit = np.floor(2 * (ranges / res + 1.0)).astype(np.int64)  # one cell beyond: the surface
     # a sensor whose cone would leave the padded grid is off the floor plan: it sees none of it
-    rows, cols = _cone_extents(cone_tables(res, cone_deg, reach), degrees, limit // 2 + 1)
+    rows, cols = cone_extents(cone_tables(res, cone_deg, reach), degrees, limit // 2 + 1)
     index = np.flatnonzero((iy + rows[0] >= 0) & (ix + cols[0] >= 0)
                            & (iy + rows[1] <= padded[0]) & (ix + cols[1] <= padded[1]))
     # each cone's cells up to its limit, counted as row runs (exact in any order),
@@ -82,13 +82,3 @@ def sonar_visible(world: World, sensors: np.ndarray, cone_deg: float = 30.0,
         seen |= sum_beams(spans, cones, (0, 0), padded) > 0
     return seen[pad:pad + shape[0], pad:pad + shape[1]]
 
-
-def _cone_extents(tables: tuple, degrees: np.ndarray, radius: np.ndarray
-                  ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
-    """The rows and the columns (from the apex: the first, and one past the last) of the
-    cones of ``tables`` cut to ``radius`` cells, as :func:`~blocks.maps.cones.cone_window`
-    cuts them, per reading."""
-    dr, dc, h, w = (np.array(v)[degrees] for v in zip(*[(t[0], t[1], *t[2].shape)
-                                                        for t in tables]))
-    return ((dr + np.maximum(0, -radius - dr), dr + np.minimum(h, radius + 1 - dr)),
-            (dc + np.maximum(0, -radius - dc), dc + np.minimum(w, radius + 1 - dc)))
