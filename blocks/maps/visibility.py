@@ -81,4 +81,3 @@ def sonar_visible(world: World, sensors: np.ndarray, cone_deg: float = 30.0,
                       np.full(n, -1, np.int64), np.ones(n), np.zeros(n))
         seen |= sum_beams(spans, cones, (0, 0), padded) > 0
     return seen[pad:pad + shape[0], pad:pad + shape[1]]
-
