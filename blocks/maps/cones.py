@@ -89,7 +89,6 @@ def cone_window(table: tuple[int, int, np.ndarray], row: int, col: int, radius: 
             codes[r0:r1, c0:c1])
 
 
-
 def cone_extents(tables: tuple[tuple[int, int, np.ndarray], ...], degrees: np.ndarray,
                  radius: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray],
                                                tuple[np.ndarray, np.ndarray]]:
@@ -100,6 +99,7 @@ def cone_extents(tables: tuple[tuple[int, int, np.ndarray], ...], degrees: np.nd
                                                         for t in tables]))
     return ((dr + np.maximum(0, -radius - dr), dr + np.minimum(h, radius + 1 - dr)),
             (dc + np.maximum(0, -radius - dc), dc + np.minimum(w, radius + 1 - dc)))
+
 
 @dataclass(frozen=True)
 class ConeSpans:

@@ -176,7 +176,6 @@ def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
     todo = np.flatnonzero(far > 0)  # beams that clear or darken something
     clear = (p.l_free * w_free[todo]).astype(np.float32)
     darken = (p.l_occ * w_occ[todo]).astype(np.float32)
-    hit = np.isfinite(hit_at[todo])
     # each beam's log-odds by range code, looked up for its cone's cells: a cell gets
     # ``clear`` below ``free``, ``darken`` from ``lo`` to ``hi`` (the arc wins), else 0
     by_code = np.zeros(int(max(t[2].max() for t in tables)) + 1, dtype=np.float32)
@@ -186,17 +185,17 @@ def _draw_beams(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
     for first in range(0, len(todo), part):
         at = slice(first, first + part)
         beam = todo[at]
-        for k, iy, ix, degree, radius, free, lo, hi, hits in zip(
+        for k, iy, ix, degree, radius, free, lo, hi in zip(
                 range(first, first + len(beam)), (row[beam] - corner[1]).tolist(),
                 (col[beam] - corner[0]).tolist(), degrees[beam].tolist(),
                 (far[beam] // 2 + 1).tolist(), free_code[beam].tolist(),
-                lo_code[beam].tolist(), hi_code[beam].tolist(), hit[at].tolist()):
+                lo_code[beam].tolist(), hi_code[beam].tolist()):
             window = cone_window(tables[degree], iy, ix, radius)
             if window is None:
                 continue
             rows, cols, sub = window
             by_code[:max(free, 0)] = clear[k]
-            if hits and hi >= lo:
+            if hi >= lo:  # an echo (beam_codes gives the others hi = -1 < lo)
                 by_code[max(lo, 0):hi + 1] = darken[k]
             delta = by_code[sub]
             by_code[:max(free, hi + 1, 0)] = 0
