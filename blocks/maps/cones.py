@@ -132,6 +132,12 @@ class ConeSpans:
         cell of the cone below ``t``, narrower than ``|dy| <= rows_below[t]``
         where the cone points along the rows; the runs outside it are cut
         away entirely.
+    beyond_from, beyond_to
+        (360, limit + 1) int: likewise the runs on the band of rows from the first to
+        the last with a cell of the cone at ``t`` or beyond.  A ring
+        ``{l <= code < h}`` lies on rows of both bands, of ``h`` in ``reached_*``
+        and of ``l`` here: on the others the cones cut at ``l`` and ``h`` have the
+        same runs.
     """
 
     first: np.ndarray
@@ -145,6 +151,8 @@ class ConeSpans:
     reach: int
     reached_from: np.ndarray
     reached_to: np.ndarray
+    beyond_from: np.ndarray
+    beyond_to: np.ndarray
 
     @property
     def small(self) -> SmallRuns:
@@ -192,10 +200,14 @@ def cone_spans(resolution: float, cone_deg: float, reach: int) -> ConeSpans:
     first = np.zeros((360, 2 * reach + 2), dtype=np.int64)
     limit = 2 * reach + 2  # codes inside a cone are at most 2 reach
     reached_rows = np.zeros((360, limit + 1, 2), dtype=np.int64)  # dy from, dy to (inclusive)
+    beyond_rows = np.zeros((360, limit + 1, 2), dtype=np.int64)
     rows, starts, stops = [], [], []
     count = 0
     for k, (dr, dc, codes) in enumerate(tables):
-        reached_rows[k] = _rows_reached(codes.min(axis=1).astype(np.int64), dr, limit)
+        t = np.arange(limit + 1)[:, None]
+        reached_rows[k] = _row_band(codes.min(axis=1)[None, :] < t, dr)
+        greatest = np.where(codes < outside, codes.astype(np.int64), -1).max(axis=1)
+        beyond_rows[k] = _row_band(greatest[None, :] >= t, dr)
         inside = np.pad(codes < outside, ((0, 0), (1, 1))).astype(np.int8)
         step = np.diff(inside, axis=1)  # +1 where a run starts, -1 one past its end
         r_on, c_on = np.nonzero(step == 1)  # row by row, left to right
@@ -218,17 +230,17 @@ def cone_spans(resolution: float, cone_deg: float, reach: int) -> ConeSpans:
     heading = np.arange(360)[:, None]
     reached_from = first[heading, reach + reached_rows[..., 0]]
     reached_to = first[heading, reach + reached_rows[..., 1] + 1]
+    beyond_from = first[heading, reach + beyond_rows[..., 0]]
+    beyond_to = first[heading, reach + beyond_rows[..., 1] + 1]
     return ConeSpans(first, row, start, stop, np.abs(row), half_width, rows_below, limit, reach,
-                     reached_from, reached_to)
+                     reached_from, reached_to, beyond_from, beyond_to)
 
 
-def _rows_reached(least: np.ndarray, dr: int, limit: int) -> np.ndarray:
-    """(limit + 1, 2): for each code bound ``t``, the first and last row offset whose least
-    code (``least``, rows from offset ``dr`` on) is below ``t``; (0, -1) for none.  (A cone
-    on a grid is not quite convex: a row between two reached ones may be missed; its runs
-    are then cut away entirely, as outside the band.)"""
-    t = np.arange(limit + 1)[:, None]
-    reached = least[None, :] < t  # (limit + 1, rows)
+def _row_band(reached: np.ndarray, dr: int) -> np.ndarray:
+    """(limit + 1, 2): for each code bound ``t``, the first and last row offset for which
+    ``reached`` (limit + 1, rows from offset ``dr`` on) holds; (0, -1) for none.  (A cone on
+    a grid is not quite convex: a row between two reached ones may be missed; the band
+    holds it all the same, and its runs are then cut away entirely.)"""
     some = reached.any(axis=1)
     lo = np.argmax(reached, axis=1)
     hi = reached.shape[1] - 1 - np.argmax(reached[:, ::-1], axis=1)

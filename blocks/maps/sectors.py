@@ -97,6 +97,47 @@ def beam_terms(beams: Beams, limit: int) -> tuple[np.ndarray, np.ndarray, np.nda
     >>> t.tolist(), value.tolist()
     ([6, 10, 6], [-0.4, 0.85, -0.85])
     """
+    t, value, keep = _term_table(beams)
+    beam = np.broadcast_to(np.arange(len(beams))[:, None], t.shape)
+    return beam[keep], np.minimum(t[keep], limit), value[keep]
+
+
+def beam_rings(beams: Beams, limit: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The terms of :func:`beam_terms`, each pair ``value * (S(h) - S(l))`` as one ring.
+
+    Why: a ring ``{l <= code < h}`` lies on a few rows of its cone (an echo's
+    arc across a cone that points along the columns: a thirtieth of them),
+    where its two cones drawn apart have runs on every row, equal outside the
+    ring, that cancel.
+
+    Returns
+    -------
+    beam, outer, inner, value
+        One row per ring: the reading, the code bounds (both clipped to
+        ``limit``; ``inner`` 0 for a whole cut cone ``S(outer)``) and the log-odds.
+
+    Examples
+    --------
+    >>> b = Beams(*[np.array([v]) for v in (0, 0, 0, 6, 6, 9, -0.4, 0.85)])
+    >>> beam, outer, inner, value = beam_rings(b, limit=100)
+    >>> outer.tolist(), inner.tolist(), value.tolist()
+    ([6, 10], [0, 6], [-0.4, 0.85])
+    """
+    t, value, keep = _term_table(beams)
+    inner = np.zeros_like(t)
+    for o, i in ((1, 2), (3, 4)):  # the pairs of a reading with the same value, negated
+        pair = keep[:, o] & keep[:, i]
+        inner[:, o] = np.where(pair, t[:, i], 0)
+        keep[:, i] &= ~pair
+    beam = np.broadcast_to(np.arange(len(beams))[:, None], t.shape)
+    return (beam[keep], np.minimum(t[keep], limit), np.minimum(inner[keep], limit),
+            value[keep])
+
+
+def _term_table(beams: Beams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, 5) the code bounds and the log-odds of :func:`beam_terms`' terms, and which count;
+    columns 1, 2 and 3, 4 are pairs ``v * (S(h) - S(l))``, with ``h >= l``."""
     free = beams.free
     occ = beams.hi >= beams.lo
     h = np.where(occ, beams.hi + 1, 0)
@@ -113,8 +154,7 @@ def beam_terms(beams: Beams, limit: int) -> tuple[np.ndarray, np.ndarray, np.nda
     same_hl = t[:, 3] == t[:, 4]
     keep[:, 3] &= ~same_hl
     keep[:, 4] &= ~same_hl
-    beam = np.broadcast_to(np.arange(len(free))[:, None], t.shape)
-    return beam[keep], np.minimum(t[keep], limit), value[keep]
+    return t, value, keep
 
 
 def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: int, *,
@@ -126,47 +166,83 @@ def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: in
     reach the last column).  Every cone must lie inside the grid.  A run that
     the disk cuts away entirely starts and ends at the same place: its two
     entries cancel.  With ``exact`` (the log-odds sum exactly in any order:
-    :func:`exact_weights`), the rows that the disk leaves no run on are left
-    out (about a sixth of the entries of a room visit's maps), which changes
-    no sum; else every row within the disk's reach is drawn, as the sums'
-    rounding then depends on it.
+    :func:`exact_weights`), only the rows whose entries do not cancel out are
+    drawn (:func:`beam_rings`: an echo's arc on the rows it crosses, a cut
+    cone on the rows it reaches), which changes no sum; else every row within
+    the disk's reach is drawn, as the sums' rounding then depends on it.
     """
+    if exact:
+        return _ring_ends(spans, beams, corner, stride)
     beam, t, value = beam_terms(beams, spans.limit)
     degree = beams.degree[beam]
-    if exact:
-        e0 = spans.reached_from[degree, t]
-        n = spans.reached_to[degree, t] - e0
-    else:
-        y = spans.rows_below[t]
-        e0 = spans.first[degree, spans.reach - y]
-        n = np.maximum(spans.first[degree, spans.reach + y + 1] - e0, 0)
-    total = int(n.sum())
-    apex = (beams.row[beam] - corner[0]) * stride + beams.col[beam] - corner[1]
-    # Per run in int32 where that holds every value (half the memory traffic of int64):
-    # table offsets, and flat indices up to the farthest apex plus a cone's rows.
-    largest = (int(np.abs(apex).max()) if len(apex) else 0) + (spans.reach + 2) * (stride + 2)
-    small = spans.small if max(largest, total) < 2 ** 31 else spans
-    itype = small.row.dtype
-    entry = np.arange(total, dtype=itype)
-    entry += np.repeat((e0 - (np.cumsum(n) - n)).astype(itype), n)
-    w = small.half_width.ravel()[np.repeat((t * (spans.reach + 1)).astype(itype), n)
-                                 + small.abs_row[entry]]
-    a = small.start[entry]
-    np.maximum(a, -w, out=a)
-    w += 1
-    b = small.stop[entry]
-    np.minimum(b, w, out=b)
-    np.maximum(b, a, out=b)
-    base = small.row[entry]
-    base *= stride
-    base += np.repeat(apex.astype(itype), n)
-    ends = np.empty(2 * total, dtype=np.int64)  # run starts, then run ends
-    np.add(a, base, out=ends[:total])
-    np.add(b, base, out=ends[total:])
-    values = np.empty(2 * total)
-    values[:total] = np.repeat(value, n)
-    np.negative(values[:total], out=values[total:])
-    return ends, values
+    y = spans.rows_below[t]
+    e0 = spans.first[degree, spans.reach - y]
+    n = np.maximum(spans.first[degree, spans.reach + y + 1] - e0, 0)
+    a, b = _RunTables(spans, beams, beam, corner, stride, e0, n).cut(t)
+    return np.concatenate([a, b]), np.concatenate([np.repeat(value, n), np.repeat(-value, n)])
+
+
+def _ring_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`run_ends` of exact sums: each ring of :func:`beam_rings` on the rows where its
+    inner and outer cut cones differ, the runs cut at both bounds."""
+    beam, outer, inner, value = beam_rings(beams, spans.limit)
+    order = np.argsort(inner > 0, kind="stable")  # whole cones first, then the rings
+    beam, outer, inner, value = beam[order], outer[order], inner[order], value[order]
+    degree = beams.degree[beam]
+    e0 = np.maximum(spans.reached_from[degree, outer], spans.beyond_from[degree, inner])
+    n = np.maximum(np.minimum(spans.reached_to[degree, outer], spans.beyond_to[degree, inner])
+                   - e0, 0)
+    runs = _RunTables(spans, beams, beam, corner, stride, e0, n)
+    a, b = runs.cut(outer)
+    # and the rings' runs cut at the inner bound (a whole cone's inner cut S(0) is empty)
+    cones = len(inner) - int(np.count_nonzero(inner))
+    a_in, b_in = runs.cut(inner[cones:], cones)
+    ring_value, ring_n = value[cones:], n[cones:]
+    return (np.concatenate([a, b, a_in, b_in]),
+            np.concatenate([np.repeat(value, n), np.repeat(-value, n),
+                            np.repeat(-ring_value, ring_n), np.repeat(ring_value, ring_n)]))
+
+
+class _RunTables:
+    """The runs of many terms, each on its cone's rows ``e0 .. e0 + n`` of the tables, as
+    flat grid indices, to be cut at a code bound per term (:meth:`cut`).
+
+    Per run in int32 where that holds every value (half the memory traffic of int64):
+    table offsets, and flat indices up to the farthest apex plus a cone's rows.
+    """
+
+    def __init__(self, spans: ConeSpans, beams: Beams, beam: np.ndarray,
+                 corner: tuple[int, int], stride: int, e0: np.ndarray, n: np.ndarray) -> None:
+        total = int(n.sum())
+        apex = (beams.row[beam] - corner[0]) * stride + beams.col[beam] - corner[1]
+        largest = (int(np.abs(apex).max()) if len(apex) else 0) \
+            + (spans.reach + 2) * (stride + 2)
+        small = spans.small if max(largest, total) < 2 ** 31 else spans
+        itype = small.row.dtype
+        entry = np.arange(total, dtype=itype)
+        entry += np.repeat((e0 - (np.cumsum(n) - n)).astype(itype), n)
+        base = small.row[entry]
+        base *= stride
+        base += np.repeat(apex.astype(itype), n)
+        self.spans, self.small, self.itype, self.n = spans, small, itype, n
+        self.entry, self.base = entry, base
+
+    def cut(self, t: np.ndarray, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """The flat indices (int64) of the starts and of the ends of the runs of terms
+        ``first, first + 1, ...`` cut to ``{code < t}`` (``t`` per term)."""
+        n = self.n[first:]
+        skip = int(self.n[:first].sum())
+        entry, base, small = self.entry[skip:], self.base[skip:], self.small
+        w = small.half_width.ravel()[np.repeat((t * (self.spans.reach + 1)).astype(self.itype),
+                                               n) + small.abs_row[entry]]
+        a = small.start[entry]
+        np.maximum(a, -w, out=a)
+        w += 1
+        b = small.stop[entry]
+        np.minimum(b, w, out=b)
+        np.maximum(b, a, out=b)
+        return np.add(a, base, dtype=np.int64), np.add(b, base, dtype=np.int64)
 
 
 def sum_beams(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
