@@ -184,6 +184,47 @@ def test_fast_line_tests_agree_with_the_fit_or_say_they_are_unsure():
     assert (status[150, 3:10] == 2).all()  # identical points: no line to trust
 
 
+def test_line_tests_of_some_starts_are_those_rows():
+    rng = np.random.default_rng(12)
+    pts = np.cumsum(rng.normal(0, 0.05, (700, 2)), axis=0)
+    starts = np.sort(rng.choice(700, 300, replace=False))
+    assert np.array_equal(_line_tests(pts, 20, 0.04, starts), _line_tests(pts, 20, 0.04)[starts])
+
+
+def _readable(status: np.ndarray, lengths) -> np.ndarray:
+    """The entries (s, L) with s + L inside s's segment: those extract_linear_features reads."""
+    end = np.repeat(np.cumsum(lengths), lengths)
+    return np.arange(len(status))[:, None] + np.arange(status.shape[1])[None, :] < end[:, None]
+
+
+def test_kept_line_tests_are_those_of_the_same_echoes(monkeypatch):
+    from blocks.maps import features
+    from blocks.maps.features import _echo_windows
+    rng = np.random.default_rng(13)
+    pool = np.cumsum(rng.normal(0, 0.03, (400, 2)), axis=0)  # echo k of a sensor at pool[k]
+    tested = []
+    plain = features._line_tests
+
+    def counted(pts, recent, line_tol, starts=None):
+        tested.append(len(pts) if starts is None else len(starts))
+        return plain(pts, recent, line_tol, starts)
+
+    monkeypatch.setattr(features, "_line_tests", counted)
+    memo = FeatureMemo()
+    calls = [[np.arange(0, 150), np.arange(200, 260)],
+             [np.arange(0, 170), np.arange(200, 260)],  # grew at its end
+             [np.arange(10, 80), np.arange(81, 170), np.arange(200, 300)],  # a hole at 80
+             [np.arange(10, 80), np.arange(81, 170), np.arange(200, 300)]]  # the same again
+    for segments in calls:
+        names = np.concatenate(segments)
+        lengths = np.array([len(part) for part in segments])
+        got = memo.line_tests(pool[names], _echo_windows(names, lengths, 20), 0.04)
+        want = plain(pool[names], 20, 0.04)
+        readable = _readable(want, lengths)
+        assert np.array_equal(got[readable], want[readable])
+    assert tested[0] == 210 and tested[1] < 60 and tested[3] == 0
+
+
 def _same_features(a, b) -> bool:
     return len(a) == len(b) and all(
         np.array_equal(f.points, g.points) and np.array_equal(f.p0, g.p0)

@@ -260,7 +260,12 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
             slots.append(found)
     if todo:
         flat = np.concatenate([axis[part, j] for _, j, part, _ in todo])
-        status = _line_tests(flat, recent, line_tol)
+        if memo is None:
+            status = _line_tests(flat, recent, line_tol)
+        else:  # each echo named by its scan and sensor, unique in the segments
+            names = np.concatenate([ids[part] * sensors.shape[1] + j for _, j, part, _ in todo])
+            lengths = np.array([len(part) for _, _, part, _ in todo])
+            status = memo.line_tests(flat, _echo_windows(names, lengths, recent), line_tol)
         at = 0
         runs: list[tuple[int, np.ndarray]] = []
         owner: list[int] = []
@@ -283,66 +288,102 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
 _KEEPS, _BREAKS, _UNSURE = 0, 1, 2
 
 
-LINE_TEST_ROWS = 4096  # starts tested at once: bounds the (rows, recent + 1, 2) temporaries
+LINE_TEST_ROWS = 512  # starts tested at once: (recent, rows) temporaries of ~80 kB stay in cache
 
 
-def _line_tests(pts: np.ndarray, recent: int, line_tol: float) -> np.ndarray:
+def _line_tests(pts: np.ndarray, recent: int, line_tol: float,
+                starts: np.ndarray | None = None) -> np.ndarray:
     """Does echo ``s + L`` leave the line through echoes ``s .. s + L - 1``?
 
-    For every start ``s`` and tail length ``3 <= L <= recent``: ``_KEEPS``,
-    ``_BREAKS`` or ``_UNSURE`` (n, recent + 1) int8.  The lines are fitted
-    from running sums, which round differently from :func:`_fit_line`; a
-    test is only decided here when its distance from ``line_tol`` exceeds a
-    bound on both roundings, else it is ``_UNSURE`` and the caller fits
-    exactly, so decisions are those of :func:`_fit_line`.  Starts are tested
-    :data:`LINE_TEST_ROWS` at a time (each row's arithmetic is its own), so
-    a whole run's echoes need tens of megabytes, not hundreds.
+    For every start ``s`` (or those ``starts``) and tail length ``3 <= L <=
+    recent``: ``_KEEPS``, ``_BREAKS`` or ``_UNSURE`` (n, recent + 1) int8.  The
+    lines are fitted from running sums, which round differently from
+    :func:`_fit_line`; a test is only decided here when its distance from
+    ``line_tol`` exceeds a bound on both roundings, else it is ``_UNSURE`` and
+    the caller fits exactly, so decisions are those of :func:`_fit_line`.  Row
+    ``s``, column ``L`` depends on echoes ``s .. s + L`` only.  Starts are
+    tested :data:`LINE_TEST_ROWS` at a time (each row's arithmetic is its own):
+    temporaries that fit in the cache, and that the allocator hands back
+    instead of mapping fresh pages for each (that took two thirds of the time
+    with 4096 starts at once).
     """
     n = len(pts)
-    status = np.zeros((n, recent + 1), dtype=np.int8)
+    starts = np.arange(n) if starts is None else np.asarray(starts, dtype=np.int64)
+    status = np.zeros((len(starts), recent + 1), dtype=np.int8)
     if n < 4:
         return status
-    for start in range(0, n, LINE_TEST_ROWS):
-        stop = min(n, start + LINE_TEST_ROWS)
-        status[start:stop] = _line_test_rows(pts, start, stop, recent, line_tol)
+    for first in range(0, len(starts), LINE_TEST_ROWS):
+        part = starts[first:first + LINE_TEST_ROWS]
+        status[first:first + len(part)] = _line_test_rows(pts, part, recent, line_tol)
     return status
 
 
-def _line_test_rows(pts: np.ndarray, start: int, stop: int, recent: int,
+def _line_test_rows(pts: np.ndarray, starts: np.ndarray, recent: int,
                     line_tol: float) -> np.ndarray:
-    """:func:`_line_tests` for the starts ``start .. stop - 1``."""
+    """:func:`_line_tests` for the ``starts``.
+
+    Worked out with the tail lengths along the first axis, so that the running
+    sums add whole rows (a few thousand starts each) instead of running along
+    a row of ``recent``; and the line's direction from the scatter with square
+    roots (no ``arctan2``, ``cos``, ``sin`` nor ``hypot``, the costs of the
+    test): it rounds by a few units in the last place, far inside the bound.
+    """
     n = len(pts)
-    offsets = np.arange(recent + 1)
-    starts = np.arange(start, stop)
-    idx = np.minimum(starts[:, None] + offsets[None, :], n - 1)
-    ref = pts[start:stop, None, :]
-    u = pts[idx] - ref  # (rows, recent + 1, 2), relative to the tail's first echo
-    q = u[:, 1:, :]  # the echo tested against a tail of L = 1..recent echoes
-    head = u[:, :-1, :]
-    count = offsets[1:].astype(np.float64)
-    sx, sy = np.cumsum(head[..., 0], axis=1), np.cumsum(head[..., 1], axis=1)
-    sxx = np.cumsum(head[..., 0] ** 2, axis=1)
-    syy = np.cumsum(head[..., 1] ** 2, axis=1)
-    sxy = np.cumsum(head[..., 0] * head[..., 1], axis=1)
+    offsets = np.arange(recent + 1)[:, None]
+    idx = np.minimum(starts[None, :] + offsets, n - 1)  # (recent + 1, rows)
+    ref = pts[starts]
+    ux = pts[idx, 0] - ref[:, 0]  # relative to the tail's first echo
+    uy = pts[idx, 1] - ref[:, 1]
+    count = offsets[1:].astype(np.float64)  # tails of L = 1..recent echoes
+    sums = np.empty((5, recent, len(starts)))
+    head_x, head_y = ux[:-1], uy[:-1]
+    sums[0], sums[1] = head_x, head_y
+    np.multiply(head_x, head_x, out=sums[2])
+    np.multiply(head_y, head_y, out=sums[3])
+    np.multiply(head_x, head_y, out=sums[4])
+    for k in range(1, recent):  # running sums, as cumsum adds them, all five a row at a time
+        sums[:, k] += sums[:, k - 1]
+    sx, sy, sxx, syy, sxy = sums
     cx, cy = sx / count, sy / count
     vxx, vyy, vxy = sxx - count * cx * cx, syy - count * cy * cy, sxy - count * cx * cy
-    angle = 0.5 * np.arctan2(2 * vxy, vxx - vyy)
-    ex, ey = q[..., 0] - cx, q[..., 1] - cy
-    cross = np.cos(angle) * ey - np.sin(angle) * ex
-    # Bounds: sums of <= recent squares round by far less than 1e-11 of their size; an
-    # error e in the scatter turns the line by at most 2 e / |(vxx - vyy, 2 vxy)|.
-    scatter = np.hypot(vxx - vyy, 2 * vxy)
-    size = sxx + syy
+    ex, ey = ux[1:] - cx, uy[1:] - cy  # the echo tested against each tail
+    # The major axis: half the angle of (c, d) = (vxx - vyy, 2 vxy), along (scatter + c, d)
+    # or, without cancellation where c < 0, (d, scatter - c).
+    c, d = vxx - vyy, 2 * vxy
+    scatter = np.sqrt(c * c + d * d)
+    ahead = c >= 0
+    dx = np.where(ahead, scatter + c, d)
+    dy = np.where(ahead, d, scatter - c)
     with np.errstate(divide="ignore", invalid="ignore"):
+        cross = np.abs(dx * ey - dy * ex) / np.sqrt(dx * dx + dy * dy)  # NaN: no line
+        # Bounds: sums of <= recent squares round by far less than 1e-11 of their size; an
+        # error e in the scatter turns the line by at most 2 e / |(c, d)|.
+        size = sxx + syy
         turn = np.where(scatter > 0, 2e-11 * size / scatter, np.inf)
-        slack = np.hypot(ex, ey) * turn + 1e-11 * (1.0 + np.abs(ref).sum(axis=2) + np.sqrt(size))
-        decided = np.abs(np.abs(cross) - line_tol) > slack  # NaN slack (0 * inf): unsure
-    status = np.zeros((stop - start, recent + 1), dtype=np.int8)
-    status[:, 1:] = np.where(decided, np.where(np.abs(cross) > line_tol, _BREAKS, _KEEPS),
-                             _UNSURE)
+        slack = np.sqrt(ex * ex + ey * ey) * turn \
+            + 1e-11 * (1.0 + np.abs(ref).sum(axis=1) + np.sqrt(size))
+        decided = np.abs(cross - line_tol) > slack  # NaN slack (0 * inf): unsure
+    status = np.zeros((len(starts), recent + 1), dtype=np.int8)
+    status[:, 1:] = np.where(decided, np.where(cross > line_tol, _BREAKS, _KEEPS), _UNSURE).T
     status[:, :3] = _KEEPS
-    status[starts[:, None] + offsets[None, :] >= n] = _KEEPS  # past the last echo
+    status[(starts[None, :] + offsets >= n).T] = _KEEPS  # past the last echo
     return status
+
+
+def _echo_windows(names: np.ndarray, lengths: np.ndarray, recent: int) -> np.ndarray:
+    """(n, recent + 1) the names of echoes ``s .. s + recent`` of each echo ``s``'s segment
+    (segments of ``lengths`` one after the other in ``names``), -1 past its end: what
+    :func:`_line_tests`' row ``s`` depends on, where it is read.
+
+    Examples
+    --------
+    >>> _echo_windows(np.array([7, 8, 9, 4]), np.array([3, 1]), 2).tolist()
+    [[7, 8, 9], [8, 9, -1], [9, -1, -1], [4, -1, -1]]
+    """
+    n = len(names)
+    end = np.repeat(np.cumsum(lengths), lengths)  # one past each echo's segment
+    idx = np.arange(n)[:, None] + np.arange(recent + 1)[None, :]
+    return np.where(idx < end[:, None], names[np.minimum(idx, n - 1)], -1)
 
 
 class FeatureMemo:
@@ -391,6 +432,32 @@ class FeatureMemo:
 
     def store(self, kind: str, key: tuple, value) -> None:
         self._new[(kind, key)] = (value,)
+
+    def line_tests(self, pts: np.ndarray, windows: np.ndarray, line_tol: float) -> np.ndarray:
+        """:func:`_line_tests` of ``pts``, the rows of the last call's echoes looked up.
+
+        Why: a segment that gained or lost echoes at an end is worked out again,
+        but most of its starts see the same echoes as before.  ``windows``
+        (:func:`_echo_windows`) names the echoes each row depends on; a row kept
+        from the last call is used where its echoes are the same ones (past the
+        end of the segment, where the caller does not read, it may differ).
+        """
+        recent = windows.shape[1] - 1
+        names = windows[:, 0]
+        status = np.empty((len(pts), recent + 1), dtype=np.int8)
+        need = np.arange(len(pts))
+        known = self.get("lines", (recent, line_tol))
+        if known is not None and len(known[0]):
+            known_names, known_windows, known_status = known
+            at = np.minimum(np.searchsorted(known_names, names), len(known_names) - 1)
+            same = (known_names[at] == names) & (
+                (known_windows[at] == windows) | (windows < 0)).all(axis=1)
+            status[same] = known_status[at[same]]
+            need = np.flatnonzero(~same)
+        status[need] = _line_tests(pts, recent, line_tol, need)
+        order = np.argsort(names)
+        self.store("lines", (recent, line_tol), (names[order], windows[order], status[order]))
+        return status
 
     def lookup(self, kind: str, key: tuple, compute, *args):
         """The value kept under ``key``, else ``compute(*args)`` (then kept)."""
