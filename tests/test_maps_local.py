@@ -474,6 +474,23 @@ def test_run_ends_with_fewer_rows_or_in_int32_sum_the_same():
     assert np.array_equal(moved[1], fewer[1])
 
 
+@pytest.mark.parametrize("piece", [7, 300, 10 ** 9])
+def test_runs_added_a_piece_at_a_time_are_the_run_ends(monkeypatch, piece):
+    from blocks.maps import sectors
+    rng = np.random.default_rng(14)
+    reach, size = 12, 60
+    beams, _ = _random_beams(rng, 200, size, reach)
+    spans = cone_spans(0.1, 30.0, reach)
+    cells = size * (size + 1)
+    index, value = sectors.run_ends(spans, beams, (0, 0), size + 1, exact=True)
+    monkeypatch.setattr(sectors, "RUN_PIECE", piece)
+    grid = np.zeros(cells)
+    sectors.add_runs(grid, spans, beams, (0, 0), size + 1)
+    assert np.array_equal(grid, np.bincount(index, value, minlength=cells))
+    with pytest.raises(ValueError, match="outside the grid"):
+        sectors.add_runs(np.zeros(cells), spans, beams, (20, 0), size + 1, check=True)
+
+
 def test_cone_distances_pass_over_only_pairs_found_inf():
     from blocks.maps.features import _distances_in_cones
     from sim2d.sonar import nearest_in_cone

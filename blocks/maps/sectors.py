@@ -27,13 +27,15 @@ probability 1/2, unknown like an untouched one.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from .cones import ConeSpans
 
-__all__ = ["BeamSums", "Beams", "beam_terms", "exact_weights", "sum_beams"]
+__all__ = ["BeamSums", "Beams", "add_runs", "beam_rings", "beam_terms", "exact_weights",
+           "run_ends", "sum_beams"]
 
 
 @dataclass(frozen=True)
@@ -157,6 +159,11 @@ def _term_table(beams: Beams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, value, keep
 
 
+#: Runs drawn at once by :func:`add_runs`: temporaries of ~100 kB, that stay in cache and
+#: that the allocator hands back instead of mapping fresh pages for each.
+RUN_PIECE = 16384
+
+
 def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: int, *,
              exact: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The difference-grid entries of ``beams``: flat indices and log-odds.
@@ -171,37 +178,66 @@ def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: in
     cone on the rows it reaches), which changes no sum; else every row within
     the disk's reach is drawn, as the sums' rounding then depends on it.
     """
-    if exact:
-        return _ring_ends(spans, beams, corner, stride)
-    beam, t, value = beam_terms(beams, spans.limit)
-    degree = beams.degree[beam]
-    y = spans.rows_below[t]
-    e0 = spans.first[degree, spans.reach - y]
-    n = np.maximum(spans.first[degree, spans.reach + y + 1] - e0, 0)
-    a, b = _RunTables(spans, beams, beam, corner, stride, e0, n).cut(t)
-    return np.concatenate([a, b]), np.concatenate([np.repeat(value, n), np.repeat(-value, n)])
+    pieces = list(_run_pieces(spans, beams, corner, stride, exact, None))
+    return np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces])
 
 
-def _ring_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: int
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`run_ends` of exact sums: each ring of :func:`beam_rings` on the rows where its
-    inner and outer cut cones differ, the runs cut at both bounds."""
-    beam, outer, inner, value = beam_rings(beams, spans.limit)
-    order = np.argsort(inner > 0, kind="stable")  # whole cones first, then the rings
-    beam, outer, inner, value = beam[order], outer[order], inner[order], value[order]
-    degree = beams.degree[beam]
-    e0 = np.maximum(spans.reached_from[degree, outer], spans.beyond_from[degree, inner])
-    n = np.maximum(np.minimum(spans.reached_to[degree, outer], spans.beyond_to[degree, inner])
-                   - e0, 0)
-    runs = _RunTables(spans, beams, beam, corner, stride, e0, n)
-    a, b = runs.cut(outer)
-    # and the rings' runs cut at the inner bound (a whole cone's inner cut S(0) is empty)
-    cones = len(inner) - int(np.count_nonzero(inner))
-    a_in, b_in = runs.cut(inner[cones:], cones)
-    ring_value, ring_n = value[cones:], n[cones:]
-    return (np.concatenate([a, b, a_in, b_in]),
-            np.concatenate([np.repeat(value, n), np.repeat(-value, n),
-                            np.repeat(-ring_value, ring_n), np.repeat(ring_value, ring_n)]))
+def add_runs(flat: np.ndarray, spans: ConeSpans, beams: Beams, corner: tuple[int, int],
+             stride: int, *, check: bool = False) -> None:
+    """Add the entries of :func:`run_ends` (``exact``) to the difference grid ``flat``
+    (raveled), :data:`RUN_PIECE` runs at a time; with ``check``, first make sure that
+    each lands inside it."""
+    for index, value in _run_pieces(spans, beams, corner, stride, True, RUN_PIECE):
+        if check and index.size and (index.min() < 0 or index.max() >= flat.size):
+            raise ValueError("a reading's cone reaches outside the grid")
+        np.add.at(flat, index, value)
+
+
+def _run_pieces(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: int,
+                exact: bool, budget: int | None
+                ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """:func:`run_ends` in pieces of about ``budget`` runs (None: one piece, run starts
+    then run ends, in the order of :func:`beam_terms`)."""
+    if exact:  # the rings of beam_rings on the rows where their two cuts differ
+        beam, outer, inner, value = beam_rings(beams, spans.limit)
+        order = np.argsort(inner > 0, kind="stable")  # whole cones first, then the rings
+        beam, outer, inner, value = beam[order], outer[order], inner[order], value[order]
+        degree = beams.degree[beam]
+        e0 = np.maximum(spans.reached_from[degree, outer], spans.beyond_from[degree, inner])
+        n = np.maximum(np.minimum(spans.reached_to[degree, outer],
+                                  spans.beyond_to[degree, inner]) - e0, 0)
+    else:  # each cut cone on every row within its disk's reach
+        beam, outer, value = beam_terms(beams, spans.limit)
+        inner = np.zeros_like(outer)
+        y = spans.rows_below[outer]
+        degree = beams.degree[beam]
+        e0 = spans.first[degree, spans.reach - y]
+        n = np.maximum(spans.first[degree, spans.reach + y + 1] - e0, 0)
+    for part in _pieces(n, budget):
+        runs = _RunTables(spans, beams, beam[part], corner, stride, e0[part], n[part])
+        a, b = runs.cut(outer[part])
+        v = np.repeat(value[part], n[part])
+        index, values = [a, b], [v, -v]
+        rings = inner[part] > 0
+        cones = int(np.searchsorted(rings, True))  # the rings come last
+        if cones < len(rings):  # and their inner cuts (a whole cone's S(0) is empty)
+            a_in, b_in = runs.cut(inner[part][cones:], cones)
+            ring_v = v[int(n[part][:cones].sum()):]
+            index += [a_in, b_in]
+            values += [-ring_v, ring_v]
+        yield np.concatenate(index), np.concatenate(values)
+
+
+def _pieces(n: np.ndarray, budget: int | None) -> Iterator[slice]:
+    """Slices of consecutive terms with about ``budget`` runs (``n`` per term) each."""
+    total = int(n.sum())
+    if budget is None or total <= budget:
+        yield slice(0, len(n))
+        return
+    cuts = np.searchsorted(np.cumsum(n), np.arange(budget, total, budget), side="right")
+    bounds = np.unique(np.concatenate([[0], cuts, [len(n)]]))
+    for first, stop in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        yield slice(first, stop)
 
 
 class _RunTables:
@@ -258,7 +294,11 @@ def sum_beams(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
 def _difference_grid(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
                      shape: tuple[int, int], exact: bool) -> np.ndarray:
     h, w = shape
-    index, value = run_ends(spans, beams, corner, w + 1, exact=exact)
+    if exact:  # in any order: a piece at a time
+        diff = np.zeros(h * (w + 1))
+        add_runs(diff, spans, beams, corner, w + 1, check=True)
+        return diff.reshape(h, w + 1)
+    index, value = run_ends(spans, beams, corner, w + 1)
     if index.size and (index.min() < 0 or index.max() >= h * (w + 1)):
         raise ValueError("a reading's cone reaches outside the grid")
     return np.bincount(index, value, minlength=h * (w + 1)).reshape(h, w + 1)
@@ -396,14 +436,8 @@ class BeamSums:
             br, bc = base.corner[0] - r0, base.corner[1] - c0
             diff[br:br + bh, bc:bc + bw + 1] = base.diff
         # the readings gone, with their log-odds negated, then the new ones: one pass
-        index, value = run_ends(self.spans, _joined(base.beams.take(gone), beams.take(new)),
-                                (r0, c0), stride, exact=True)  # only exact sums are kept
-        if index.size:
-            lo = int(index.min())
-            size = int(index.max()) + 1 - lo
-            if lo:
-                index -= lo
-            diff.reshape(-1)[lo:lo + size] += np.bincount(index, value, minlength=size)
+        add_runs(diff.reshape(-1), self.spans, _joined(base.beams.take(gone), beams.take(new)),
+                 (r0, c0), stride)  # only exact sums are kept
         self.readings_drawn += len(gone) + len(new)
         nr, nc = corner[0] - r0, corner[1] - c0
         if (nr, nc) == (0, 0) and union == shape:
