@@ -404,3 +404,40 @@ def test_sonar_visibility_in_chunks_equals_visibility_at_once():
     whole = sonar_visible(world, sensors, chunk=len(sensors))
     assert whole.sum() > 1000  # the cones sweep a good part of the corridor
     assert np.array_equal(sonar_visible(world, sensors, chunk=7), whole)  # the last one short
+
+
+@pytest.mark.parametrize("spill", [False, True])
+def test_features_drawn_on_their_window_are_those_drawn_on_the_whole_grid(spill):
+    import cv2
+
+    from blocks.maps.features import LinearFeature
+    from blocks.maps.offline import _draw_features, finish_map
+    from blocks.maps.logodds import log_odds_to_probability
+    rng = np.random.default_rng(21)
+    p = OfflineMapParams()
+    shape, corner = (120, 150), (-40, 10)
+    features = []
+    for k in range(12):
+        ends = rng.uniform([-0.9, 0.3], [2.6, 3.2], (2, 2))  # cells 4..144 across, 2..118 up
+        if spill and k == 5:
+            ends[1] = (3.9, 3.5)  # beyond the grid's right and top edges
+        features.append(LinearFeature(ends[0], ends[1], np.array([0.0, 1.0]),
+                                      np.zeros((int(rng.integers(3, 40)), 2)), 0.0))
+    log_odds = rng.choice([0.0, -0.4, 0.85], shape).astype(np.float32)
+    seen = log_odds != 0
+    # as drawn before: every line on a grid-sized image, added everywhere
+    evidence = np.zeros(shape, dtype=np.float32)
+    for f in sorted(features, key=lambda f: f.support):
+        a = np.round(f.p0 / p.resolution - np.array(corner) - 0.5).astype(int)
+        b = np.round(f.p1 / p.resolution - np.array(corner) - 0.5).astype(int)
+        cv2.line(evidence, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])),
+                 float(p.feature_logodds * min(1.0, f.support / p.full_support)), 1, cv2.LINE_8)
+    want, want_seen = log_odds + evidence, seen | (evidence > 0)
+    got, got_seen = log_odds.copy(), seen.copy()
+    _draw_features(got, got_seen, corner, features, p)
+    assert np.array_equal(got, want) and np.array_equal(got_seen, want_seen)
+    assert (evidence > 0).sum() > 300
+    occupancy = finish_map(log_odds.copy(), seen.copy(), corner, features, p).occupancy
+    np.clip(want, -p.clamp, p.clamp, out=want)
+    assert np.array_equal(occupancy, np.where(
+        want_seen, log_odds_to_probability(want.astype(np.float64)), np.nan), equal_nan=True)

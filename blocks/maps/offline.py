@@ -29,7 +29,6 @@ from .cones import cone_tables, cone_window
 from .drift import DriftCorrection, correct_odometry
 from .features import (LinearFeature, extract_linear_features, merge_features, predict_ranges,
                        sensor_poses_along)
-from .logodds import log_odds_to_probability
 from .mapio import OccupancyMap
 
 __all__ = ["OfflineMapParams", "OfflineMap", "beam_codes", "build_offline_map",
@@ -208,15 +207,35 @@ def _draw_features(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, in
     """Draw each feature as a one-cell line of log-odds, stronger with more support."""
     import cv2
 
-    evidence = np.zeros(log_odds.shape, dtype=np.float32)
-    for f in sorted(features, key=lambda f: f.support):  # where lines cross, the stronger wins
+    order = sorted(features, key=lambda f: f.support)  # where lines cross, the stronger wins
+    ends = [(np.round(f.p0 / p.resolution - np.array(corner) - 0.5).astype(int),
+             np.round(f.p1 / p.resolution - np.array(corner) - 0.5).astype(int)) for f in order]
+    rows, cols = _feature_window(ends, log_odds.shape)
+    evidence = np.zeros((rows.stop - rows.start, cols.stop - cols.start), dtype=np.float32)
+    for f, (a, b) in zip(order, ends):
         strength = p.feature_logodds * min(1.0, f.support / p.full_support)
-        a = np.round(f.p0 / p.resolution - np.array(corner) - 0.5).astype(int)
-        b = np.round(f.p1 / p.resolution - np.array(corner) - 0.5).astype(int)
-        cv2.line(evidence, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), float(strength), 1,
+        cv2.line(evidence, (int(a[0]) - cols.start, int(a[1]) - rows.start),
+                 (int(b[0]) - cols.start, int(b[1]) - rows.start), float(strength), 1,
                  cv2.LINE_8)
-    log_odds += evidence
-    seen |= evidence > 0
+    log_odds[rows, cols] += evidence
+    seen[rows, cols] |= evidence > 0
+
+
+def _feature_window(ends: list[tuple[np.ndarray, np.ndarray]], shape: tuple[int, int]
+                    ) -> tuple[slice, slice]:
+    """The rows and columns of the grid that hold every line's end cells (x, y), or the
+    whole grid if one lies outside it.  Why: the lines are drawn on that window only (a
+    line within its image is drawn the same wherever the image starts), not on a grid-sized
+    one added everywhere."""
+    whole = (slice(0, shape[0]), slice(0, shape[1]))
+    if not ends:
+        return slice(0, 0), slice(0, 0)
+    cells = np.array([end for pair in ends for end in pair])  # (2 F, 2) x, y
+    x0, y0 = cells.min(axis=0)
+    x1, y1 = cells.max(axis=0) + 1
+    if x0 < 0 or y0 < 0 or x1 > shape[1] or y1 > shape[0]:
+        return whole  # cv2 clips the lines to the grid: draw them on it as it is
+    return slice(int(y0), int(y1)), slice(int(x0), int(x1))
 
 
 def build_offline_map(poses: np.ndarray, ranges: np.ndarray, mounts: np.ndarray, *,
@@ -309,13 +328,22 @@ def grid_extent(flat: np.ndarray, reach: int, res: float
     return (x0, y0), (y1 - y0, x1 - x0)
 
 
+def _probability(log_odds: np.ndarray) -> np.ndarray:
+    """:func:`~blocks.maps.logodds.log_odds_to_probability` (float64), the same operations in
+    place in one new grid instead of a grid-sized temporary for each."""
+    p = np.negative(log_odds, dtype=np.float64)
+    np.exp(p, out=p)
+    p += 1.0
+    return np.divide(1.0, p, out=p)
+
+
 def finish_map(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, int],
                features: list[LinearFeature], p: OfflineMapParams) -> OccupancyMap:
     """The map from the beams' log-odds and "seen": the features drawn on, clamped, as
     probabilities (NaN where nothing was seen).  ``log_odds`` and ``seen`` change."""
     _draw_features(log_odds, seen, corner, features, p)
     np.clip(log_odds, -p.clamp, p.clamp, out=log_odds)
-    occupancy = np.where(seen, log_odds_to_probability(np.asarray(log_odds, dtype=np.float64)),
-                         np.nan)
+    occupancy = _probability(log_odds)
+    occupancy[~seen] = np.nan
     res = p.resolution
     return OccupancyMap(occupancy, res, (corner[0] * res, corner[1] * res, 0.0))
