@@ -411,8 +411,8 @@ def test_features_drawn_on_their_window_are_those_drawn_on_the_whole_grid(spill)
     import cv2
 
     from blocks.maps.features import LinearFeature
-    from blocks.maps.offline import _draw_features, finish_map
     from blocks.maps.logodds import log_odds_to_probability
+    from blocks.maps.offline import _draw_features, finish_map
     rng = np.random.default_rng(21)
     p = OfflineMapParams()
     shape, corner = (120, 150), (-40, 10)
