@@ -45,7 +45,7 @@ from typing import Any, NamedTuple
 import cv2
 import numpy as np
 
-from semantic.matching import ratio_matches
+from semantic.matching import RatioMatcher
 
 __all__ = ["GateEvidence", "GateParams", "ObjectGate", "Region", "textured_regions"]
 
@@ -198,14 +198,13 @@ class ObjectGate:
         self._detector = detector
         self._owner = np.asarray(owner)
         self._labels = int(self._owner.max()) + 1 if len(self._owner) else 0
-        self._ratio = ratio
         self.min_inliers = min_inliers
         self.min_corners = max(1, math.ceil(p.corners_per_inlier * min_inliers))
         self.min_votes = max(1, math.ceil(p.votes_share * min_inliers))
         self._fast = cv2.FastFeatureDetector_create(threshold=p.fast_threshold,
                                                     nonmaxSuppression=True)
         self._mean, self._basis = _principal_axes(descriptors, p.dims)
-        self._projected = self._project(descriptors)
+        self._matcher = RatioMatcher(self._project(descriptors), ratio)
         self.counts: dict[str, int] = {}
         self.reset_counts()
 
@@ -268,7 +267,7 @@ class ObjectGate:
         _, desc = self._detector.detectAndCompute(grey[y0:y1, x0:x1], None)
         if desc is None or self._labels == 0:
             return 0
-        _, train = ratio_matches(self._project(desc), self._projected, self._ratio)
+        _, train = self._matcher(self._project(desc))
         if len(train) == 0:
             return 0
         return int(np.bincount(self._owner[train], minlength=self._labels).max())

@@ -42,7 +42,7 @@ import cv2
 import numpy as np
 
 from blocks.signs.types import CameraModel
-from semantic.matching import ratio_matches
+from semantic.matching import RatioMatcher, ratio_matches
 from semantic.object_gate import GateParams, ObjectGate
 
 __all__ = [
@@ -210,6 +210,9 @@ class ObjectRecogniser:
         self._owner = np.concatenate(owners) if owners else np.zeros(0, np.int32)
         self._offset = np.concatenate([[0], np.cumsum([len(m.points) for m in self._models])])
         self._norm = cv2.NORM_L2 if self.params.feature == "sift" else cv2.NORM_HAMMING
+        self._matcher: RatioMatcher | None = None  # (float descriptors: batchDistance's matches)
+        if self._descriptors is not None and self._norm == cv2.NORM_L2:
+            self._matcher = RatioMatcher(self._descriptors, self.params.ratio)
         self.gate: ObjectGate | None = None
         if self.params.early_reject and self._descriptors is not None:
             self.gate = ObjectGate(self._descriptors, self._owner, self._frame_detector,
@@ -244,7 +247,10 @@ class ObjectRecogniser:
         kps, desc = self._frame_detector.detectAndCompute(grey, None)
         if desc is None or len(kps) < p.min_inliers:
             return []
-        good_q, train = ratio_matches(desc, self._descriptors, p.ratio, self._norm)
+        if self._matcher is not None:
+            good_q, train = self._matcher(desc)
+        else:
+            good_q, train = ratio_matches(desc, self._descriptors, p.ratio, self._norm)
         if len(good_q) < p.min_inliers:
             return []
         frame_pts = cv2.KeyPoint_convert(kps)[good_q]  # (N, 2) float32, as the k.pt

@@ -12,7 +12,7 @@ from blocks.core.errors import SemmapError
 from blocks.signs.types import CameraModel
 from semantic.objects import CatalogueError, default_catalogue, load_catalogue
 from semantic.objects.make_catalogue import draw
-from semantic.matching import ratio_matches
+from semantic.matching import RatioMatcher, ratio_matches
 from semantic.object_gate import GateParams, textured_regions
 from semantic.recognise import (ObjectRecogniser, RecogniserParams, match_sightings,
                                 object_world_position)
@@ -383,3 +383,28 @@ def test_ratio_matches_are_knn_match_s(dtype, norm):
     q, t = ratio_matches(query, train, 0.8, norm)
     assert list(zip(q.tolist(), t.tolist())) == want
     assert {1, 3} <= set(q.tolist()) and not {0, 2} & set(q.tolist())
+
+
+@pytest.mark.parametrize("dims", [16, 32, 128])
+def test_ratio_matcher_gives_ratio_matches_to_the_bit(dims):
+    """Same matches as ratio_matches, also where only the distances' rounding decides.
+
+    Most queries lie 4/9 of the way from one train row to another, where the
+    ratio of their distances is 0.8 up to rounding: the product's bounds must
+    send those to batchDistance (without them, dozens come out otherwise).
+    """
+    rng = np.random.default_rng(dims)
+    train = rng.normal(0, 50, (300, dims)).astype(np.float32)
+    train[:, : dims // 2] = np.round(np.abs(train[:, : dims // 2]))  # SIFT's are integers
+    train[200:210] = train[0:10]  # two equally near rows: no match
+    a, b = train[rng.integers(0, 300, 1500)], train[rng.integers(0, 300, 1500)]
+    edge = (a + np.float32(4 / 9) * (b - a)).astype(np.float32)
+    near = train[rng.integers(0, 300, 300)] + rng.normal(0, 5, (300, dims)).astype(np.float32)
+    query = np.vstack([edge, near, rng.normal(0, 50, (200, dims))]).astype(np.float32)
+    matcher = RatioMatcher(train, 0.8)
+    for q in (query, query[:1], query[:0]):
+        want, got = ratio_matches(q, train, 0.8), matcher(q)
+        assert all(np.array_equal(w, g) and w.dtype == g.dtype for w, g in zip(want, got))
+    assert len(ratio_matches(query, train, 0.8)[0]) > 300
+    lonely = RatioMatcher(train[:1], 0.8)(query)  # a single row: no second nearest, no match
+    assert all(len(x) == 0 for x in lonely)

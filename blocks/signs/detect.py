@@ -928,14 +928,16 @@ def _text_pixels(level: np.ndarray, quad: tuple[float, ...], body_level: float,
     ya, yb = int(r0.min()), int(r1.max()) + 1
     if yb <= ya:
         return 0.0, 0.0, None
-    rows = np.arange(ya, yb)[:, None]
-    inside = (rows >= r0[None, :]) & (rows <= r1[None, :])
-    n_inside = int(inside.sum())
+    n_inside = int(np.maximum(r1 - r0 + 1, 0).sum())  # (rows ya..yb span every column's)
     if n_inside < 4:
         return 0.0, 0.0, None
     patch = level[ya:yb, a:b + 1]
-    dark = (patch < math.ceil(dark_ratio * body_level)) & inside  # (levels are integers)
-    n_dark = int(dark.sum())
+    dark = patch < math.ceil(dark_ratio * body_level)  # (levels are integers)
+    if not dark.any():
+        return 0.0, 0.0, None  # (often so: nothing dark even between these rows)
+    rows = np.arange(ya, yb)[:, None]
+    dark &= (rows >= r0[None, :]) & (rows <= r1[None, :])
+    n_dark = int(np.count_nonzero(dark))
     if n_dark == 0:
         return 0.0, 0.0, None
     dcols = np.flatnonzero(dark.any(axis=0))
