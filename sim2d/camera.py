@@ -286,6 +286,28 @@ def project_points(points: np.ndarray, cam_pose, tilt: float, zoom: float,
     return cx - f * yc / safe, cy - f * zc / safe, xc
 
 
+def _project(points: np.ndarray, shot: _Shot, mount_z: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`project_points` for a shot: the intrinsics its lens already holds (the same
+    numbers, without working them out again)."""
+    px, py, yaw = shot.pose
+    lens = shot.lens
+    dx, dy = points[:, 0] - px, points[:, 1] - py
+    c, s = math.cos(yaw), math.sin(yaw)
+    xc = c * dx + s * dy
+    yc = -s * dx + c * dy
+    zc = points[:, 2] - mount_z
+    safe = np.where(np.abs(xc) > 1e-12, xc, 1e-12)
+    return lens.cx - lens.f * yc / safe, lens.cy - lens.f * zc / safe, xc
+
+
+def _forward_depth(x: float, y: float, pose: tuple[float, float, float]) -> float:
+    """The depth :func:`project_points` gives a point at (``x``, ``y``), in plain floats
+    (the same IEEE operations, for one point)."""
+    px, py, yaw = pose
+    return math.cos(yaw) * (x - px) + math.sin(yaw) * (y - py)
+
+
 def cast_rays(origin, angles: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Nearest wall hit along each ray, all rays against all capsules at once.
 
@@ -338,60 +360,66 @@ class Walls:
 
     def __init__(self, segments: np.ndarray, index: bool = True) -> None:
         self.segments = np.ascontiguousarray(segments, dtype=np.float64).reshape(-1, 5)
-        self._end_ids = None  # (2, S) int: the same id for coinciding ends (a's, b's)
+        # by coordinate, (5, S): x1, y1, x2, y2 and radius rows, as a cast works on them
+        self._rows = np.ascontiguousarray(self.segments.T)
+        self._limit = -(self._rows[4] + 1e-4)  # (S,): how far out of a wedge a centre line may be
+        # (2, S) int: the ends' keys (a's, b's), or the same id for coinciding ends when indexed
+        self._ends = _end_keys(self.segments).reshape(2, -1)
+        self._indexed = False
         n_ends = 2 * len(self.segments)
         if index and n_ends:
-            keys = _end_keys(self.segments)
+            keys = self._ends.ravel()
             # _shared_ends gives ends without a face the stand-in keys -1 .. -n_ends;
             # a real key among them would meet one there, so such walls are not indexed
             if not np.any((keys >= -n_ends) & (keys < 0)):
-                self._end_ids = np.unique(keys, return_inverse=True)[1].reshape(2, -1)
+                self._ends = np.unique(keys, return_inverse=True)[1].reshape(2, -1)
+                self._indexed = True
 
     def cast(self, origin, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nearest wall hit along each ray: ``distance`` and ``incidence`` as :func:`cast_rays`."""
         angles = np.asarray(angles, dtype=np.float64).reshape(-1)
         n_rays = angles.shape[0]
-        seg, end_ids = self.segments, self._end_ids
-        if len(seg) == 0 or n_rays == 0:
+        if len(self.segments) == 0 or n_rays == 0:
             return np.full(n_rays, np.inf), np.zeros(n_rays)
         ox, oy = float(origin[0]), float(origin[1])
-        rel = seg[:, :4] - (ox, oy, ox, oy)  # the ends relative to the origin
-        keep = _cull(rel, seg[:, 4], angles)
+        rel = self._rows[:4] - np.array([[ox], [oy], [ox], [oy]])  # the ends from the origin
+        radius, ends = self._rows[4], self._ends
+        keep = _cull(rel, self._limit, angles)
         if keep is not None:
-            seg, rel = seg[keep], rel[keep]
-            if end_ids is not None:
-                end_ids = end_ids[:, keep]
-            if len(seg) == 0:
+            keep = np.flatnonzero(keep)
+            if len(keep) == 0:
                 return np.full(n_rays, np.inf), np.zeros(n_rays)
-        return _cast(seg, rel, angles, end_ids)
+            rel, radius, ends = rel[:, keep], radius[keep], ends[:, keep]
+        return _cast(rel, radius, angles, ends, self._indexed)
 
 
-def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
-          end_ids: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """The ray-capsule kernel of :func:`cast_rays` on the segments it keeps: ``rel`` are
-    their ends relative to the origin, ``end_ids`` their ids from :class:`Walls` (or None
-    to find the shared ends here)."""
+def _cast(rel: np.ndarray, radius: np.ndarray, angles: np.ndarray, ends: np.ndarray,
+          indexed: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The ray-capsule kernel of :func:`cast_rays` on the segments it keeps.
+
+    ``rel`` (4, S) are their ends relative to the origin (x1, y1, x2, y2 rows),
+    ``radius`` (S,) their radii, ``ends`` (2, S) their ends' ids from :class:`Walls`
+    when ``indexed``, else their keys (:func:`_end_keys`) for finding the shared ends here.
+    """
     n_rays = angles.shape[0]
-    # x and y side by side, (2, S) each: the same arithmetic in half the numpy calls
-    a = np.ascontiguousarray(rel[:, 0:2].T)
-    ax, ay = a
-    r = seg[:, 4]
-    e = rel[:, 2:4].T - a
+    a = rel[0:2]
+    e = rel[2:4] - a  # (2, S): x and y side by side, the same arithmetic in half the calls
     ex, ey = e
-    length = np.hypot(ex, ey)
-    has_length = length > 1e-9
-    inv_len = np.where(has_length, 1.0 / np.where(has_length, length, 1.0), 0.0)
+    inv_len, has_length = _inverse_lengths(np.hypot(ex, ey))
     normal = e[::-1] * inv_len  # unit normal (left of a -> b): -ey / len, ex / len
     np.negative(normal[0], out=normal[0])
+    ax, ay = a
     nx, ny = normal
-    side = np.where(-(ax * nx + ay * ny) >= 0, 1.0, -1.0)  # the face towards the origin
-    q = a + side * r * normal
+    # the face towards the origin: the radius along the normal, or against it
+    q = a + np.where(ax * nx + ay * ny <= 0, radius, -radius) * normal
     qx, qy = q
-    shared, caps = _shared_ends(seg, rel, has_length, end_ids)
+    shared, caps_xy, caps_r = _shared_ends(rel, radius, has_length, ends, indexed)
     # (and 10 um more everywhere, so float32 rounding opens no pinholes at joints)
-    s_lo = np.where(shared[0], -r * inv_len, 0.0) - 1e-5 * inv_len
-    s_hi = np.where(shared[1], 1.0 + r * inv_len, 1.0) + 1e-5 * inv_len
-    s_lo[~has_length], s_hi[~has_length] = 2.0, -1.0  # no face for posts
+    r_len, margin = radius * inv_len, 1e-5 * inv_len
+    s_lo = np.where(shared[0], -r_len, 0.0) - margin
+    s_hi = np.where(shared[1], 1.0 + r_len, 1.0) + margin
+    if has_length is not None:
+        s_lo[~has_length], s_hi[~has_length] = 2.0, -1.0  # no face for posts
     f32 = np.float32
     dx, dy = np.cos(angles).astype(f32)[:, None], np.sin(angles).astype(f32)[:, None]
     (ex32, ey32), (qx32, qy32) = e.astype(f32), q.astype(f32)
@@ -408,26 +436,25 @@ def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
         ok = t_face > 0
         ok &= s_face >= s_lo.astype(f32)
         ok &= s_face <= s_hi.astype(f32)
-        np.copyto(t_face, f32(np.inf), where=np.logical_not(ok, out=ok))
+        t_face = np.where(ok, t_face, f32(np.inf))
         best = np.argmin(t_face, axis=1)
         t_best = t_face[rows, best]
         # |cos| only where it is needed, as it would be everywhere
         cos_best = np.abs(denom[rows, best]) * inv_len.astype(f32)[best]
-        if len(caps):
-            cx32, cy32 = caps[:, 0].astype(f32), caps[:, 1].astype(f32)
-            cr = caps[:, 2]
+        if len(caps_r):
+            cx32, cy32 = caps_xy.astype(f32)
             proj = dx * cx32 + dy * cy32  # (R, K): along the ray
             perp = dx * cy32
             perp -= dy * cx32  # across it (no cancellation, unlike |c|^2 - proj^2)
-            disc = (cr * cr).astype(f32) - perp * perp
+            disc = (caps_r * caps_r).astype(f32) - perp * perp
             root = np.sqrt(np.maximum(disc, f32(0)))
             t_cap = proj - root
-            np.copyto(t_cap, f32(np.inf), where=~((disc >= 0) & (t_cap > 0)))
+            t_cap = np.where((disc >= 0) & (t_cap > 0), t_cap, f32(np.inf))
             best_cap = np.argmin(t_cap, axis=1)
             t_cap_best = t_cap[rows, best_cap]
             on_cap = t_cap_best < t_best  # a tie goes to the face (listed first)
             if on_cap.any():
-                cap_r = np.where(cr > 0, cr, 1.0).astype(f32)
+                cap_r = np.where(caps_r > 0, caps_r, 1.0).astype(f32)
                 cos_cap = root[rows, best_cap] / cap_r[best_cap]
                 t_best = np.where(on_cap, t_cap_best, t_best)
                 cos_best = np.where(on_cap, cos_cap, cos_best)
@@ -436,10 +463,19 @@ def _cast(seg: np.ndarray, rel: np.ndarray, angles: np.ndarray,
     return distance, np.clip(incidence, 0.0, 1.0)
 
 
-def _cull(rel: np.ndarray, radius: np.ndarray, angles: np.ndarray) -> np.ndarray | None:
-    """Which capsules (ends ``rel`` relative to the rays' origin, (S, 4)) are not wholly
-    outside the wedge the rays span (S,) bool; None (keep all) when the wedge is a half
-    turn or more."""
+def _inverse_lengths(length: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """``1 / length`` (0 for segments of no length, posts) and which segments have a length
+    (None when all do: walls without posts take the short way, with the same numbers)."""
+    if length.min() > 1e-9:
+        return 1.0 / length, None
+    has_length = length > 1e-9
+    return np.where(has_length, 1.0 / np.where(has_length, length, 1.0), 0.0), has_length
+
+
+def _cull(rel: np.ndarray, limit: np.ndarray, angles: np.ndarray) -> np.ndarray | None:
+    """Which capsules (ends ``rel`` relative to the rays' origin, (4, S) rows x1, y1, x2, y2;
+    ``limit`` their ``-(radius + 1e-4)``) are not wholly outside the wedge the rays span
+    (S,) bool; None (keep all) when the wedge is a half turn or more."""
     lo, hi = _angle_span(angles)
     half = (hi - lo) / 2
     if half >= math.pi / 2 - 1e-3:
@@ -447,12 +483,11 @@ def _cull(rel: np.ndarray, radius: np.ndarray, angles: np.ndarray) -> np.ndarray
     mid = angles[0] + lo + half
     c, s = math.cos(mid), math.sin(mid)
     sh, ch = math.sin(half), math.cos(half)
-    px, py = rel[:, 0::2], rel[:, 1::2]  # (S, 2): both ends
+    px, py = rel[0::2], rel[1::2]  # (2, S): both ends
     x, y = c * px + s * py, -s * px + c * py  # in the wedge's frame
-    limit = -(radius + 1e-4)[:, None]
     xs, yc = x * sh, y * ch
-    out_left, out_right = xs - yc < limit, xs + yc < limit  # (S, 2): each end
-    return ~((out_left[:, 0] & out_left[:, 1]) | (out_right[:, 0] & out_right[:, 1]))
+    out_left, out_right = xs - yc < limit, xs + yc < limit  # (2, S): each end
+    return ~((out_left[0] & out_left[1]) | (out_right[0] & out_right[1]))
 
 
 def _angle_span(angles: np.ndarray) -> tuple[float, float]:
@@ -462,15 +497,19 @@ def _angle_span(angles: np.ndarray) -> tuple[float, float]:
     Rays in strictly monotonic order over less than 3 rad (a camera's columns, or one
     ray) have them at their ends, so only the ends are wrapped (the wrap moves an angle
     by a few ulp, far less than the rays' spacing): the same two numbers, for a
-    fifth of the work.
+    fifth of the work. (``np.angle`` is ``arctan2`` of the parts; a step test on the
+    least or greatest step is the test on all of them, NaN included.)
     """
-    rel = angles - angles[0]
-    if len(rel) == 1:
+    if len(angles) == 1:
         return 0.0, 0.0  # the wrap of exp(0j)
-    steps = np.diff(rel)
-    if abs(rel[-1]) < 3.0 and ((steps < -1e-9).all() or (steps > 1e-9).all()):
-        rel = rel[[0, -1]]
-    wrapped = np.angle(np.exp(1j * rel))
+    rel = angles - angles[0]
+    steps = rel[1:] - rel[:-1]
+    if abs(rel[-1]) < 3.0 and (steps.max() < -1e-9 or steps.min() > 1e-9):
+        z = np.exp(1j * rel[[0, -1]])
+        first, last = np.arctan2(z.imag, z.real).tolist()  # first: 0.0, last: not 0
+        return min(first, last), max(first, last)
+    z = np.exp(1j * rel)
+    wrapped = np.arctan2(z.imag, z.real)
     return float(wrapped.min()), float(wrapped.max())
 
 
@@ -481,39 +520,46 @@ def _end_keys(seg: np.ndarray) -> np.ndarray:
     return keys[:, 0] * 1_000_003 + keys[:, 1]
 
 
-def _shared_ends(seg: np.ndarray, rel: np.ndarray, has_length: np.ndarray,
-                 end_ids: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _shared_ends(rel: np.ndarray, radius: np.ndarray, has_length: np.ndarray | None,
+                 ends: np.ndarray, indexed: bool
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Which segment ends touch another segment's end, and the round caps still needed.
 
-    ``rel`` (S, 4) are the ends relative to the rays' origin; ``end_ids``
-    (2, S), if given, their ids from :class:`Walls` (equal for coinciding
-    ends); without them the ends are keyed here.
+    ``rel`` (4, S) are the ends relative to the rays' origin; ``has_length``
+    which segments have a face (None: all); ``ends`` (2, S) the ends' ids from
+    :class:`Walls` (equal for coinciding ends) when ``indexed``, else their
+    keys (:func:`_end_keys`).
 
-    Returns ``shared`` (2, S) bool (a ends, b ends) and ``caps`` (K, 3): x, y
-    (relative to the origin) and radius of the free ends, then of the
-    zero-length segments (posts).
+    Returns ``shared`` (2, S) bool (a ends, b ends); ``caps_xy`` (2, K), the x
+    and y (relative to the origin) of the free ends, a's then b's, then of the
+    zero-length segments (posts); and ``caps_r`` (K,), their radii.
     """
-    n = len(seg)
-    valid = np.concatenate((has_length, has_length))  # (2S,): a ends, then b ends
-    if end_ids is None:
-        keys = _end_keys(seg)
-        _, inverse, counts = np.unique(np.where(valid, keys, -1 - np.arange(2 * n)),
-                                       return_inverse=True, return_counts=True)
-        shared = (counts[inverse] > 1).reshape(2, n) & has_length
-    else:  # how many ends with a face share each id
-        shared = (np.bincount(end_ids.ravel(), weights=valid)[end_ids] > 1) & has_length
-    radius = seg[:, 4]
+    n = rel.shape[1]
+    if indexed and has_length is None:  # how many ends (all with a face) share each id
+        shared = np.bincount(ends.ravel())[ends] > 1
+    else:
+        valid = (np.ones(2 * n, bool) if has_length is None
+                 else np.concatenate((has_length, has_length)))  # (2S,): a ends, then b ends
+        if indexed:  # how many ends with a face share each id
+            shared = np.bincount(ends.ravel(), weights=valid)[ends] > 1
+        else:
+            _, inverse, counts = np.unique(np.where(valid, ends.ravel(), -1 - np.arange(2 * n)),
+                                           return_inverse=True, return_counts=True)
+            shared = (counts[inverse] > 1).reshape(2, n)
+        if has_length is not None:
+            shared &= has_length
     round_end = radius > 0
-    free = (~shared & (has_length & round_end)).ravel()  # (2S,)
-    posts = ~has_length & round_end
-    n_free, n_posts = int(np.count_nonzero(free)), int(np.count_nonzero(posts))
-    caps = np.empty((n_free + n_posts, 3))
-    if n_free:
-        ends = rel.reshape(n, 2, 2).transpose(1, 0, 2).reshape(2 * n, 2)  # a's, then b's
-        caps[:n_free, :2], caps[:n_free, 2] = ends[free], np.concatenate((radius, radius))[free]
-    if n_posts:
-        caps[n_free:, :2], caps[n_free:, 2] = rel[posts, :2], radius[posts]
-    return shared, caps
+    free = ~shared & round_end  # (2, S)
+    if has_length is not None:
+        free &= has_length
+    caps_xy = rel.reshape(2, 2, n).transpose(1, 0, 2)[:, free]  # (2, K): x, y
+    caps_r = np.broadcast_to(radius, (2, n))[free]
+    if has_length is not None:
+        posts = ~has_length & round_end
+        if posts.any():
+            caps_xy = np.concatenate((caps_xy, rel[0:2, posts]), axis=1)
+            caps_r = np.concatenate((caps_r, radius[posts]))
+    return shared, caps_xy, caps_r
 
 
 # ---- sign plates ---------------------------------------------------------------------------
@@ -759,6 +805,7 @@ class _Plates:
     corners: tuple[np.ndarray, ...]  # (4, 3) each, as plate_corners gives them
     xy: np.ndarray  # (N, 2) m: the centres
     reach: np.ndarray  # (N,) m: the farthest corner from the centre (horizontally)
+    normals: tuple[np.ndarray, ...]  # (2,) each: (cos, sin) of the sign's facing
 
     @classmethod
     def of(cls, world: World) -> _Plates:
@@ -767,39 +814,46 @@ class _Plates:
         xy = np.array([[sign.x, sign.y] for sign in signs], dtype=np.float64).reshape(-1, 2)
         reach = np.array([np.hypot(*(c[:, :2] - centre).T).max()
                           for c, centre in zip(corners, xy)], dtype=np.float64)
-        return cls(signs, corners, xy, reach)
+        normals = tuple(np.array([math.cos(sign.facing), math.sin(sign.facing)])
+                        for sign in signs)
+        return cls(signs, corners, xy, reach, normals)
 
 
-def _plate_views(shot: _Shot, plates: _Plates, walls: Walls,
-                 spec: CameraSpec) -> list[_PlateView]:
-    """Every plate that is at least partly visible, with its projection and occlusion."""
+def _plate_views(shot: _Shot, plates: _Plates, walls: Walls, spec: CameraSpec,
+                 may_show: np.ndarray | None = None) -> list[_PlateView]:
+    """Every plate that is at least partly visible, with its projection and occlusion
+    (of those ``may_show`` keeps, if given: :func:`_may_show` of the plates)."""
+    if may_show is None:
+        may_show = _may_show(plates.xy, plates.reach, shot, spec)
     views = []
-    for i in np.flatnonzero(_may_show(plates.xy, plates.reach, shot, spec)):
-        view = _plate_view(int(i), plates.signs[i], plates.corners[i], shot, walls, spec)
+    for i in np.flatnonzero(may_show).tolist():
+        view = _plate_view(i, plates.signs[i], plates.corners[i], shot, walls, spec,
+                           plates.normals[i])
         if view is not None:
             views.append(view)
     return views
 
 
 def _plate_view(i: int, sign: Sign, corners3: np.ndarray, shot: _Shot, walls: Walls,
-                spec: CameraSpec) -> _PlateView | None:
+                spec: CameraSpec, normal: np.ndarray | None = None) -> _PlateView | None:
     """Sign ``i``'s plate as the camera sees it (corners ``corners3`` from
-    :func:`plate_corners`); None when none of it shows."""
-    cam_pose, tilt, zoom = shot.pose, shot.tilt, shot.zoom
-    px, py, yaw = cam_pose
+    :func:`plate_corners`, ``normal`` the (cos, sin) of its facing, if at hand);
+    None when none of it shows."""
+    px, py, yaw = shot.pose
     width, height = spec.width, spec.height
     to_cam = np.array([px - sign.x, py - sign.y])
-    distance = float(np.hypot(*to_cam))
+    distance = float(np.hypot(to_cam[0], to_cam[1]))
     if distance <= 1e-9 or distance > spec.max_range:
         return None
-    normal = np.array([math.cos(sign.facing), math.sin(sign.facing)])
+    if normal is None:
+        normal = np.array([math.cos(sign.facing), math.sin(sign.facing)])
     cos_view = float(normal @ to_cam) / distance
     if cos_view <= 0:
         return None  # seen from behind or edge-on
-    u, v, depth = project_points(corners3, cam_pose, tilt, zoom, spec)
-    if np.any(depth < NEAR):
+    u, v, depth = _project(corners3, shot, spec.mount_z)
+    if depth.min() < NEAR:  # (as np.any(depth < NEAR), NaN included)
         return None
-    if u.max() < -0.5 or u.min() > width - 0.5 or v.max() < -0.5 or v.min() > height - 0.5:
+    if _off_image(u, v, width, height):
         return None
     columns = _columns_in_front(
         shot, u, sign.x, sign.y, sign.facing, width,
@@ -814,13 +868,19 @@ def _plate_view(i: int, sign: Sign, corners3: np.ndarray, shot: _Shot, walls: Wa
         return None
     fraction, bbox = footprint
     bearing = _bearing(yaw, sign.x - px, sign.y - py)
-    _, _, centre_depth = project_points(np.array([[sign.x, sign.y, sign.z]]), cam_pose,
-                                        tilt, zoom, spec)
     return _PlateView(
         index=i, sign=sign, bearing=bearing, distance=distance,
         viewing_angle=math.acos(min(1.0, cos_view)), corners=np.stack([u, v], axis=1),
-        depth=float(centre_depth[0]), columns=columns, visible_fraction=float(fraction),
-        bbox=bbox)
+        depth=_forward_depth(sign.x, sign.y, shot.pose), columns=columns,
+        visible_fraction=float(fraction), bbox=bbox)
+
+
+def _off_image(u: np.ndarray, v: np.ndarray, width: int, height: int) -> bool:
+    """Whether a projected quad (corners ``u``, ``v``) lies wholly beside, above or below
+    the image (the four extremes read once, as plain floats)."""
+    us, vs = u.tolist(), v.tolist()
+    return (max(us) < -0.5 or min(us) > width - 0.5 or max(vs) < -0.5
+            or min(vs) > height - 0.5)
 
 
 def _may_show(xy: np.ndarray, reach: np.ndarray, shot: _Shot, spec: CameraSpec) -> np.ndarray:
@@ -1042,11 +1102,15 @@ class _Objects:
         return cls(objects, entries, xy, reach * (1 + 1e-9))
 
 
-def _object_views(shot: _Shot, objects: _Objects, spec: CameraSpec) -> list[_ObjectView]:
-    """Every object that is at least partly visible, with its projection and occlusion."""
+def _object_views(shot: _Shot, objects: _Objects, spec: CameraSpec,
+                  may_show: np.ndarray | None = None) -> list[_ObjectView]:
+    """Every object that is at least partly visible, with its projection and occlusion
+    (of those ``may_show`` keeps, if given: :func:`_may_show` of the objects)."""
+    if may_show is None:
+        may_show = _may_show(objects.xy, objects.reach, shot, spec)
     views = []
-    for i in np.flatnonzero(_may_show(objects.xy, objects.reach, shot, spec)):
-        view = _object_view(int(i), objects.objects[i], objects.entries[i], shot, spec)
+    for i in np.flatnonzero(may_show).tolist():
+        view = _object_view(i, objects.objects[i], objects.entries[i], shot, spec)
         if view is not None:
             views.append(view)
     return views
@@ -1055,8 +1119,7 @@ def _object_views(shot: _Shot, objects: _Objects, spec: CameraSpec) -> list[_Obj
 def _object_view(i: int, obj: Any, entry: Any, shot: _Shot,
                  spec: CameraSpec) -> _ObjectView | None:
     """Object ``i`` (its catalogue ``entry``) as the camera sees it; None when none of it shows."""
-    cam_pose, tilt, zoom = shot.pose, shot.tilt, shot.zoom
-    px, py, yaw = cam_pose
+    px, py, yaw = shot.pose
     width, height = spec.width, spec.height
     ox, oy = float(obj.x), float(obj.y)
     distance = math.hypot(px - ox, py - oy)
@@ -1071,10 +1134,10 @@ def _object_view(i: int, obj: Any, entry: Any, shot: _Shot,
     size = float(getattr(obj, "scale", 1.0))
     ow, oh = entry.width * size, entry.height * size
     corners3 = object_corners(ox, oy, facing, ow, oh, entry.elevation)
-    u, v, depth = project_points(corners3, cam_pose, tilt, zoom, spec)
-    if np.any(depth < NEAR):
+    u, v, depth = _project(corners3, shot, spec.mount_z)
+    if depth.min() < NEAR:  # (as np.any(depth < NEAR), NaN included)
         return None
-    if u.max() < -0.5 or u.min() > width - 0.5 or v.max() < -0.5 or v.min() > height - 0.5:
+    if _off_image(u, v, width, height):
         return None
     columns = _columns_in_front(shot, u, ox, oy, facing, width,
                                 lambda dx, dy: OBJECT_TOLERANCE)
@@ -1085,18 +1148,15 @@ def _object_view(i: int, obj: Any, entry: Any, shot: _Shot,
     cover, box = float(getattr(obj, "cover", 0.0)), None
     if cover > 0:
         box_top = entry.elevation + cover * oh
-        bu, bv, _ = project_points(object_corners(ox, oy, facing, ow, box_top),
-                                   cam_pose, tilt, zoom, spec)
+        bu, bv, _ = _project(object_corners(ox, oy, facing, ow, box_top), shot, spec.mount_z)
         box = np.stack([bu, bv], axis=1)
         fraction, bbox = _uncovered_footprint(u, v, bv[:2], cover, columns, height)
     bearing = _bearing(yaw, ox - px, oy - py)
-    centre_z = entry.elevation + oh / 2
-    _, _, centre_depth = project_points(np.array([[ox, oy, centre_z]]), cam_pose,
-                                        tilt, zoom, spec)
     return _ObjectView(
         index=i, label=obj.label, bearing=bearing, distance=distance,
         viewing_angle=math.acos(min(1.0, cos_view)), corners=np.stack([u, v], axis=1),
-        depth=float(centre_depth[0]), columns=columns, visible_fraction=float(fraction),
+        depth=_forward_depth(ox, oy, shot.pose), columns=columns,
+        visible_fraction=float(fraction),
         bbox=bbox, image=entry.image, light=float(getattr(obj, "light", 1.0)), box=box)
 
 
@@ -1295,6 +1355,8 @@ class CameraRenderer:
         self._walls = Walls(world.segments)
         self._plates = _Plates.of(world)
         self._objects: _Objects | None = None  # at the first look (it may load the catalogue)
+        self._things: tuple[np.ndarray, np.ndarray] | None = None  # plates' then objects'
+        # centres and reach, for _views
         self._palette = _palette(getattr(world, "colours", None))
         self._lens: _Lens | None = None  # of the last tilt and zoom
         self._backdrop: _Backdrop | None = None  # of that lens
@@ -1303,14 +1365,14 @@ class CameraRenderer:
     def frame(self, cam_pose, tilt: float, zoom: float, rng: np.random.Generator) -> CameraFrame:
         """The image and the signs and objects in view, from one ray cast (see :func:`render`)."""
         shot = self._shot(cam_pose, tilt, zoom)
-        plates, objects = self._plate_views(shot), self._object_views(shot)
+        plates, objects = self._views(shot)
         image = self._image(shot, plates, objects, rng)
         return CameraFrame(image, _sign_reports(plates), _object_reports(objects))
 
     def render(self, cam_pose, tilt: float, zoom: float, rng: np.random.Generator) -> np.ndarray:
         """The image alone: :func:`render`."""
         shot = self._shot(cam_pose, tilt, zoom)
-        return self._image(shot, self._plate_views(shot), self._object_views(shot), rng)
+        return self._image(shot, *self._views(shot), rng)
 
     def visible_signs(self, cam_pose, tilt: float, zoom: float) -> list[dict[str, Any]]:
         """The plates in view: :func:`visible_signs`."""
@@ -1334,12 +1396,29 @@ class CameraRenderer:
     def _plate_views(self, shot: _Shot) -> list[_PlateView]:
         return _plate_views(shot, self._plates, self._walls, self.spec)
 
+    def _views(self, shot: _Shot) -> tuple[list[_PlateView], list[_ObjectView]]:
+        """The plates and the objects in view, the candidates of both picked in one
+        :func:`_may_show` (the same tests, thing by thing, in half the numpy calls)."""
+        if not _world_objects(self.world):
+            return self._plate_views(shot), []
+        objects = self._loaded_objects()
+        may_show = _may_show(*self._things, shot, self.spec)
+        n = len(self._plates.signs)
+        return (_plate_views(shot, self._plates, self._walls, self.spec, may_show[:n]),
+                _object_views(shot, objects, self.spec, may_show[n:]))
+
+    def _loaded_objects(self) -> _Objects:
+        """The world's objects (loaded at the first look: it may load the catalogue)."""
+        if self._objects is None:
+            self._objects = _Objects.of(self.world, self._catalogue)
+            self._things = (np.concatenate((self._plates.xy, self._objects.xy)),
+                            np.concatenate((self._plates.reach, self._objects.reach)))
+        return self._objects
+
     def _object_views(self, shot: _Shot) -> list[_ObjectView]:
         if not _world_objects(self.world):
             return []
-        if self._objects is None:
-            self._objects = _Objects.of(self.world, self._catalogue)
-        return _object_views(shot, self._objects, self.spec)
+        return _object_views(shot, self._loaded_objects(), self.spec)
 
     def _image(self, shot: _Shot, plates: list[_PlateView], objects: list[_ObjectView],
                rng: np.random.Generator) -> np.ndarray:
@@ -1356,7 +1435,7 @@ class CameraRenderer:
             else:
                 _draw_plate(img, depth, view, spec)
         # range-dependent blur (the depths, no longer needed, become the sigmas), then noise
-        sigma = np.minimum(depth, f32(1e3), out=depth)
+        sigma = np.minimum(depth, canvas.far, out=depth)  # (1e3 m)
         sigma *= f32(spec.blur_per_m)
         sigma /= f32(shot.zoom)
         img = _depth_blur(img, sigma, canvas)
@@ -1440,6 +1519,10 @@ class _Canvas:
         self.spare = (np.empty((*size, 3), f32), np.empty((*size, 3), f32))
         self.half = np.empty((height // 2, width // 2, 3), f32)
         self.small = np.empty((height // 2, width // 2, 3), f32)
+        # the depth and sigma caps as whole frames: numpy's float32 minimum is four times
+        # as fast against an array as against a scalar (the same values)
+        self.far = np.full(size, 1e3, f32)
+        self.sigma_cap = np.full(size, BLUR_LEVELS[-1], f32)
 
 
 @dataclass(frozen=True)
@@ -1603,16 +1686,25 @@ def _warp_texture(img: np.ndarray, depth: np.ndarray, levels: tuple[np.ndarray, 
     size = (x1 - x0, y1 - y0)
     plate = cv2.warpPerspective(tex, M, size, flags=cv2.INTER_LINEAR,
                                 borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0))
-    mask = cv2.warpPerspective(np.full((th, tw), 255, np.uint8), M, size, flags=cv2.INTER_LINEAR,
+    mask = cv2.warpPerspective(_opaque(th, tw), M, size, flags=cv2.INTER_LINEAR,
                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     alpha = mask.astype(np.float32) / 255.0 * columns[None, x0:x1]
     region = img[y0:y1, x0:x1]
-    a = alpha[..., None]
-    region *= 1.0 - a
-    shaded = np.multiply(a, plate)  # float32, as a * plate.astype(np.float32)
+    # alpha in each channel: numpy's loops run along whole rows, not three values at a time
+    a = cv2.merge((alpha, alpha, alpha))
+    region *= np.subtract(1.0, a, dtype=np.float32)
+    shaded = np.multiply(a, plate, out=a)  # float32, as a * plate.astype(np.float32)
     shaded *= np.float32(shade)
     region += shaded
     depth[y0:y1, x0:x1] = np.where(alpha > 0.5, np.float32(depth_value), depth[y0:y1, x0:x1])
+
+
+@functools.lru_cache(maxsize=64)
+def _opaque(height: int, width: int) -> np.ndarray:
+    """A read-only all-255 mask of a texture's size (the coverage :func:`_warp_texture` warps)."""
+    mask = np.full((height, width), 255, np.uint8)
+    mask.setflags(write=False)
+    return mask
 
 
 def _depth_blur(img: np.ndarray, sigma: np.ndarray, canvas: _Canvas) -> np.ndarray:
@@ -1633,7 +1725,7 @@ def _depth_blur(img: np.ndarray, sigma: np.ndarray, canvas: _Canvas) -> np.ndarr
     the horizon, a third of the frame or less).
     """
     f32 = np.float32
-    sigma = np.minimum(sigma, f32(BLUR_LEVELS[-1]), out=sigma)
+    sigma = np.minimum(sigma, canvas.sigma_cap, out=sigma)  # BLUR_LEVELS[-1]
     boxes, boxed = _blur_boxes(sigma)
     out = img
     half_box = None  # the part of canvas.half made so far

@@ -18,14 +18,24 @@ from sim2d.camera import (
     BLUR_LEVELS,
     _angle_span,
     _Canvas,
+    _Lens,
+    _Shot,
     _blur_boxes,
     _depth_blur,
+    _end_keys,
+    _forward_depth,
     _gaussian_blur,
+    _inverse_lengths,
+    _off_image,
+    _project,
+    _shared_ends,
+    _warp_texture,
     camera_pose,
     cast_rays,
     clamp_ptz,
     focal_length,
     plate_corners,
+    project_points,
     render,
     sign_plate_image,
     visible_objects,
@@ -810,3 +820,127 @@ def test_angle_span_is_the_wrapped_extremes_of_any_rays():
         wide = rng.uniform(-7, 7) + np.sort(rng.uniform(0, rng.uniform(0.1, 7), 50))
         for angles in (columns, columns[::-1], shuffled, wide, columns[:1], columns[:2]):
             assert _angle_span(angles) == wrapped_all(angles)
+
+
+# ---- the renderer's shortcuts: the same numbers as the plain ways -----------------------------
+@settings(max_examples=60, deadline=None)
+@given(corners=st.lists(st.tuples(coord, coord), min_size=2, max_size=8),
+       radius=st.sampled_from([0.0, 0.025, 0.1]), closed=st.booleans(),
+       origin=st.tuples(coord, coord), indexed=st.booleans())
+def test_walls_with_a_face_each_take_the_short_way_to_the_same_numbers(corners, radius, closed,
+                                                                       origin, indexed):
+    """Casts over walls that all have a length skip the masks posts need (inverse lengths,
+    shared ends, caps): the short way must give the numbers of the long one."""
+    points = np.round(np.array(corners), 2)
+    chain = np.column_stack([points[:-1], points[1:]])
+    if closed:
+        chain = np.vstack([chain, np.concatenate([points[-1], points[0]])])
+    segments = np.column_stack([chain, np.full(len(chain), radius)])
+    walls = Walls(segments, index=indexed)
+    rel = walls._rows[:4] - np.array(origin * 2)[:, None]
+    length = np.hypot(*(rel[2:4] - rel[0:2]))
+    if not length.min() > 1e-9:
+        return  # a chain through one point twice: a wall without a face
+    inv_len, has_length = _inverse_lengths(length)
+    assert has_length is None
+    assert np.array_equal(inv_len, np.where(length > 1e-9, 1.0 / length, 0.0))
+    short = _shared_ends(rel, walls._rows[4], None, walls._ends, walls._indexed)
+    long = _shared_ends(rel, walls._rows[4], np.ones(len(segments), bool), walls._ends,
+                        walls._indexed)
+    assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(short, long))
+
+
+def test_shared_ends_are_found_among_the_kept_walls_alone():
+    """Two walls meeting at a corner share it (no caps there); alone, each has two caps."""
+    segments = np.array([[0.0, 0.0, 2.0, 0.0, 0.1], [2.0, 0.0, 2.0, 2.0, 0.1]])
+    for indexed in (True, False):
+        walls = Walls(segments, index=indexed)
+        rel = walls._rows[:4] - np.array([[-1.0], [1.0], [-1.0], [1.0]])
+        shared, caps_xy, caps_r = _shared_ends(rel, walls._rows[4], None, walls._ends,
+                                               walls._indexed)
+        assert shared.tolist() == [[False, True], [True, False]]
+        assert caps_xy.T.tolist() == [[1.0, -1.0], [3.0, 1.0]] and caps_r.tolist() == [0.1, 0.1]
+        one = _shared_ends(rel[:, :1], walls._rows[4][:1], None, walls._ends[:, :1],
+                           walls._indexed)
+        assert not one[0].any() and len(one[2]) == 2
+    assert len(set(_end_keys(segments).tolist())) == 3
+
+
+@settings(max_examples=80, deadline=None)
+@given(points=st.lists(st.tuples(coord, coord, st.floats(0, 2.5)), min_size=1, max_size=6),
+       pose=st.tuples(coord, coord, st.floats(-7, 7)), tilt=st.floats(-0.5, 0.5),
+       zoom=st.floats(1.0, 10.0))
+def test_a_shot_projects_as_project_points_does(points, pose, tilt, zoom):
+    """The views project with the lens's intrinsics, and the centres' depth in plain
+    floats: the numbers of project_points, to the bit."""
+    pts = np.array(points, dtype=np.float64)
+    shot_ = _Shot(pose, tilt, zoom, _Lens.of(SPEC, tilt, zoom), np.zeros(0), np.zeros(0))
+    want = project_points(pts, pose, tilt, zoom, SPEC)
+    got = _project(pts, shot_, SPEC.mount_z)
+    assert all(np.array_equal(g, w) for g, w in zip(got, want))
+    for (x, y, _), depth in zip(points, want[2]):
+        assert _forward_depth(x, y, pose) == depth
+
+
+def test_a_quad_is_off_the_image_only_wholly_beside_above_or_below_it():
+    u, v = np.array([10.0, 20.0, 20.0, 10.0]), np.array([5.0, 5.0, 30.0, 30.0])
+    assert not _off_image(u, v, 320, 240)
+    assert _off_image(u - 31, v, 320, 240) and _off_image(u + 311, v, 320, 240)
+    assert _off_image(u, v - 31, 320, 240) and _off_image(u, v + 235, 320, 240)
+    assert not _off_image(u - 20.4, v, 320, 240) and not _off_image(u, v + 234, 320, 240)
+
+
+def _warp_texture_by_broadcasting(img, depth, levels, corners, columns, shade, depth_value,
+                                  spec):
+    """The texture warp as it was, alpha broadcast over the channels (the reference)."""
+    corners = corners.astype(np.float64)
+    edge = max(np.hypot(*(corners[1] - corners[0])), np.hypot(*(corners[2] - corners[3])))
+    tex = levels[0]
+    for level in levels:
+        if level.shape[1] >= 1.5 * edge:
+            tex = level
+    th, tw = tex.shape[:2]
+    src = np.array([[-0.5, -0.5], [tw - 0.5, -0.5], [tw - 0.5, th - 0.5], [-0.5, th - 0.5]],
+                   dtype=np.float32)
+    M = cv2.getPerspectiveTransform(src, corners.astype(np.float32))
+    x0 = max(0, math.floor(corners[:, 0].min()) - 1)
+    x1 = min(spec.width, math.ceil(corners[:, 0].max()) + 2)
+    y0 = max(0, math.floor(corners[:, 1].min()) - 1)
+    y1 = min(spec.height, math.ceil(corners[:, 1].max()) + 2)
+    if x1 <= x0 or y1 <= y0:
+        return
+    M = np.array([[1, 0, -x0], [0, 1, -y0], [0, 0, 1]], dtype=np.float64) @ M
+    size = (x1 - x0, y1 - y0)
+    plate = cv2.warpPerspective(tex, M, size, flags=cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0))
+    mask = cv2.warpPerspective(np.full((th, tw), 255, np.uint8), M, size,
+                               flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                               borderValue=0)
+    alpha = mask.astype(np.float32) / 255.0 * columns[None, x0:x1]
+    region = img[y0:y1, x0:x1]
+    a = alpha[..., None]
+    region *= 1.0 - a
+    shaded = np.multiply(a, plate)
+    shaded *= np.float32(shade)
+    region += shaded
+    depth[y0:y1, x0:x1] = np.where(alpha > 0.5, np.float32(depth_value), depth[y0:y1, x0:x1])
+
+
+def test_textures_warp_as_with_alpha_broadcast_over_the_channels():
+    """Plates and pictures are blended with alpha spread to three channels first (faster
+    loops): the image and depth must be those of alpha broadcast, to the bit."""
+    rng = np.random.default_rng(4)
+    levels = (rng.integers(0, 256, (200, 600, 3), dtype=np.uint8),
+              rng.integers(0, 256, (100, 300, 3), dtype=np.uint8))
+    for _ in range(40):
+        centre = rng.uniform(-40, 360, 2)
+        corners = centre + rng.uniform(-1, 1, (4, 2)) * rng.uniform(2, 150) + \
+            np.array([[-60, -20], [60, -20], [60, 20], [-60, 20]]) * rng.uniform(0.05, 2)
+        columns = rng.random(SPEC.width) < 0.8
+        img = rng.uniform(0, 255, (SPEC.height, SPEC.width, 3)).astype(np.float32)
+        depth = rng.uniform(0, 20, (SPEC.height, SPEC.width)).astype(np.float32)
+        want_img, want_depth = img.copy(), depth.copy()
+        _warp_texture_by_broadcasting(want_img, want_depth, levels, corners, columns, 0.7,
+                                      3.5, SPEC)
+        _warp_texture(img, depth, levels, corners, columns, 0.7, 3.5, SPEC)
+        assert np.array_equal(img, want_img) and np.array_equal(depth, want_depth)
