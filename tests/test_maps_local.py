@@ -330,6 +330,59 @@ def test_kept_predictions_are_the_predictions(corridor):
     assert kept[4][0] > 0
 
 
+def test_kept_predictions_of_windows_that_gain_and_lose_sensors(corridor):
+    """Features kept from calls two and one back, sensors that come, go and come back."""
+    poses, ranges = corridor
+    sensors = sensor_poses_along(poses, MOUNTS).reshape(-1, 3)
+    keys = np.arange(len(sensors))
+    features = merge_features(extract_linear_features(
+        sensor_poses_along(poses, MOUNTS), ranges, ranges < 3.95))
+    memo = FeatureMemo()
+    rng = np.random.default_rng(12)
+    for step in range(6):
+        index = np.sort(rng.choice(len(sensors), 1500, replace=False))
+        some = [f for f in features if rng.uniform() < 0.7]  # some known, some not
+        want = predict_ranges(sensors[index], some, 30.0, 4.0)
+        got = predict_ranges(sensors[index], some, 30.0, 4.0, ids=keys[index], memo=memo)
+        assert np.array_equal(got, want), step
+        assert np.isfinite(want).mean() > 0.3
+    assert memo.hits > 0
+
+
+def test_kept_predictions_need_increasing_ids():
+    sensors = np.zeros((3, 3))
+    features = merge_features(extract_linear_features(*_wall_run()))
+    with pytest.raises(ValueError, match="increasing"):
+        predict_ranges(sensors, features, 30.0, 4.0, ids=np.array([0, 2, 1]),
+                       memo=FeatureMemo())
+
+
+def _wall_run():
+    """A sensor driving along a wall 1 m to its left: sensors, ranges, echo."""
+    poses = np.column_stack([np.linspace(0, 3, 40), np.zeros(40), np.zeros(40)])
+    sensors = sensor_poses_along(poses, np.array([[0.0, 0.0, math.pi / 2]]))
+    ranges = np.ones((40, 1))
+    return sensors, ranges, ranges < 3.9
+
+
+def test_box_pairs_are_the_sensors_near_each_box():
+    from blocks.maps.features import _box_pairs
+    rng = np.random.default_rng(13)
+    ends = rng.uniform(0, 10, (7, 4))
+    sx, sy = rng.uniform(-5, 15, 400), rng.uniform(-5, 15, 400)
+    for members, cand in [(np.arange(7), None), (np.array([1, 4, 6]), np.arange(0, 400, 3))]:
+        which, i = _box_pairs(ends, members, sx, sy, cand, 2.0)
+        want = set()
+        for k in members:
+            for j in (range(400) if cand is None else cand):
+                if min(ends[k, 0], ends[k, 2]) - 2 <= sx[j] <= max(ends[k, 0], ends[k, 2]) + 2 \
+                        and min(ends[k, 1], ends[k, 3]) - 2 <= sy[j] <= \
+                        max(ends[k, 1], ends[k, 3]) + 2:
+                    want.add((int(k), int(j)))
+        assert set(zip(which.tolist(), i.tolist())) == want
+        assert 0 < len(want) < len(members) * 400
+
+
 def test_the_quick_merge_test_agrees_or_defers():
     rng = np.random.default_rng(7)
     from blocks.maps.features import LinearFeature, _mergeable, _mergeable_quick
@@ -509,7 +562,7 @@ def test_cone_distances_pass_over_only_pairs_found_inf():
     want = nearest_in_cone(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
                            np.sin(sensors[:, 2]), segments, half)[0]
     got = _distances_in_cones(sensors[:, 0], sensors[:, 1], np.cos(sensors[:, 2]),
-                              np.sin(sensors[:, 2]), segments, half)
+                              np.sin(sensors[:, 2]), ends, np.arange(n), half)
     assert np.array_equal(got, want)
     assert 0.05 < np.isfinite(want).mean() < 0.5
 

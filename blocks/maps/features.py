@@ -507,21 +507,24 @@ _CLEAR_OUT = 1e-9
 
 
 def _distances_in_cones(ox: np.ndarray, oy: np.ndarray, c: np.ndarray, s: np.ndarray,
-                        segments: np.ndarray, half_angle: float) -> np.ndarray:
+                        ends: np.ndarray, which: np.ndarray, half_angle: float) -> np.ndarray:
     """:func:`sim2d.sonar.nearest_in_cone`'s distance for pairs (all (P,)) of sensors at
-    (``ox``, ``oy``) heading (``c``, ``s``) = (cos, sin) and segments (P, 5) of radius 0,
-    working out only the pairs it might not find ``inf``.
+    (``ox``, ``oy``) heading (``c``, ``s``) = (cos, sin) and segments ``ends[which]``
+    (``ends`` (F, 4): x0, y0, x1, y1, of radius 0), working out only the pairs it might
+    not find ``inf``.
 
     Why: most pairs a box test leaves are segments behind the sensor or to one side of
     its cone.  A segment whose two ends lie behind the sensor (along its heading:
     ``x < -_CLEAR_OUT``), or both outside the same edge of its wedge, is ``inf`` there
     too: its nearest point in the wedge lies between the ends, behind; and the wedge
     clip leaves no part of it (``t0 > t1``).  The others are worked out by
-    ``nearest_in_cone`` itself, element by element, so the result is the same.
+    ``nearest_in_cone`` itself, element by element, so the result is the same.  The
+    end points are read a coordinate at a time, and the (P, 5) segments that
+    ``nearest_in_cone`` takes are built for the pairs kept only.
     """
     from sim2d.sonar import nearest_in_cone
-    ax, ay = segments[:, 0] - ox, segments[:, 1] - oy
-    bx, by = segments[:, 2] - ox, segments[:, 3] - oy
+    ax, ay = ends[:, 0][which] - ox, ends[:, 1][which] - oy
+    bx, by = ends[:, 2][which] - ox, ends[:, 3][which] - oy
     px, py = c * ax + s * ay, -s * ax + c * ay  # the ends in the sensor's frame
     qx, qy = c * bx + s * by, -s * bx + c * by
     sa, ca = math.sin(half_angle), math.cos(half_angle)
@@ -529,8 +532,10 @@ def _distances_in_cones(ox: np.ndarray, oy: np.ndarray, c: np.ndarray, s: np.nda
     for nx, ny in ((sa, -ca), (sa, ca)):  # inside the wedge: nx * x + ny * y >= 0
         out |= (nx * px + ny * py < -_CLEAR_OUT) & (nx * qx + ny * qy < -_CLEAR_OUT)
     keep = np.flatnonzero(~out)
+    segments = np.zeros((len(keep), 5))
+    segments[:, :4] = ends[which[keep]]
     dist = np.full(len(ox), np.inf)
-    dist[keep] = nearest_in_cone(ox[keep], oy[keep], c[keep], s[keep], segments[keep],
+    dist[keep] = nearest_in_cone(ox[keep], oy[keep], c[keep], s[keep], segments,
                                  half_angle)[0]
     return dist
 
@@ -711,43 +716,82 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
         if ids is None:
             raise ValueError("a memo needs the sensors' ids")
         ids = np.asarray(ids, dtype=np.int64)
+        if len(ids) != len(sensors) or (np.diff(ids) <= 0).any():
+            raise ValueError("the sensors' ids must be one each, increasing")
         memo.configure("predict", (float(cone_deg), float(max_range)))
-        reach = max_range + 1e-6  # farther than this from a segment's box: cannot see it
-        ends = np.array([[*f.p0, *f.p1] for f in features])  # (F, 4)
-        x0, x1 = np.minimum(ends[:, 0], ends[:, 2]), np.maximum(ends[:, 0], ends[:, 2])
-        y0, y1 = np.minimum(ends[:, 1], ends[:, 3]), np.maximum(ends[:, 1], ends[:, 3])
-        sx, sy = sensors[None, :, 0], sensors[None, :, 1]
-        todo = (sx >= (x0 - reach)[:, None]) & (sx <= (x1 + reach)[:, None]) \
-            & (sy >= (y0 - reach)[:, None]) & (sy <= (y1 + reach)[:, None])  # (F, M)
-        ranges = np.full(todo.shape, np.inf)
-        keys = []
-        matched: dict[int, tuple] = {}  # per id array of an earlier call: where ours are in it
-        for k, f in enumerate(features):
-            key = memo.serial(f)[0]
-            keys.append(key)
-            known = memo.get("predict", key)
-            if known is not None:
-                known_ids, known_ranges = known
-                match = matched.get(id(known_ids))
-                if match is None:  # the features kept by one call share its id array
-                    at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
-                    hit = known_ids[at] == ids
-                    match = matched[id(known_ids)] = (known_ids, hit, at[hit])
-                _, hit, at = match
-                todo[k] &= ~hit
-                ranges[k, hit] = known_ranges[at]
-        # the new pairs of all features at once, element by element (feature by feature,
-        # as np.nonzero goes)
-        which, i = np.nonzero(todo)
-        segments = np.column_stack([ends, np.zeros(len(features))])[which]
-        # each sensor's heading once (cos and sin are worked out element by element)
-        c, s = np.cos(sensors[:, 2]), np.sin(sensors[:, 2])
-        dist = _distances_in_cones(sensors[i, 0], sensors[i, 1], c[i], s[i], segments, half)
-        ranges[which, i] = np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf)
-        out = np.full(len(sensors), np.inf)
-        for key, row in zip(keys, ranges):
-            memo.store("predict", key, (ids, row))
-            np.minimum(out, row, out=out)
-        return out
+        return _kept_predictions(sensors, features, half, max_range, ids, memo)
     segments = np.array([[*f.p0, *f.p1, 0.0] for f in features])
     return cone_ranges_near(sensors, segments, half, max_range, chunk)
+
+
+def _box_pairs(ends: np.ndarray, features: np.ndarray, sx: np.ndarray, sy: np.ndarray,
+               sensors: np.ndarray | None, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs (feature, sensor) of ``features`` (indices into ``ends`` (F, 4)) and
+    ``sensors`` (indices into ``sx``, ``sy``; None: all) with the sensor within ``reach``
+    of the segment's bounding box: those that may see it.  Feature by feature, as
+    ``np.nonzero`` goes."""
+    x = sx if sensors is None else sx[sensors]
+    y = sy if sensors is None else sy[sensors]
+    e = ends[features]
+    x0, x1 = np.minimum(e[:, 0], e[:, 2]), np.maximum(e[:, 0], e[:, 2])
+    y0, y1 = np.minimum(e[:, 1], e[:, 3]), np.maximum(e[:, 1], e[:, 3])
+    near = (x[None, :] >= (x0 - reach)[:, None]) & (x[None, :] <= (x1 + reach)[:, None]) \
+        & (y[None, :] >= (y0 - reach)[:, None]) & (y[None, :] <= (y1 + reach)[:, None])
+    k, i = np.nonzero(near)
+    return features[k], (i if sensors is None else sensors[i])
+
+
+def _kept_predictions(sensors: np.ndarray, features: list[LinearFeature], half: float,
+                      max_range: float, ids: np.ndarray, memo: FeatureMemo) -> np.ndarray:
+    """:func:`predict_ranges` with a memo: each feature's finite ranges at the sensors
+    ``ids`` (increasing) of the last call that met it are looked up, and only the pairs of
+    it and the sensors not in that call are worked out.
+
+    Why: a feature's ranges are kept as the ids and ranges of the sensors that see it
+    (a few hundred), not a row over every sensor of the call (thousands, most ``inf``);
+    the sensors of a kept call are box-tested once per call, not per feature.  The
+    nearest range is a minimum, exact in any order, of the same element-by-element
+    distances, so the result is that of the call without a memo.
+    """
+    reach = max_range + 1e-6  # farther than this from a segment's box: cannot see it
+    ends = np.array([[*f.p0, *f.p1] for f in features])  # (F, 4)
+    out = np.full(len(sensors), np.inf)
+    groups: dict[int, tuple[np.ndarray | None, list[int]]] = {-1: (None, [])}
+    kept: list[tuple[np.ndarray, np.ndarray]] = []  # per feature: its known finite ranges
+    keys = []
+    for k, f in enumerate(features):
+        key = memo.serial(f)[0]
+        keys.append(key)
+        known = memo.get("predict", key)
+        if known is None:
+            groups[-1][1].append(k)
+            kept.append((ids[:0], out[:0]))
+            continue
+        known_ids, seen_ids, seen = known
+        if id(known_ids) not in groups:  # the features kept by one call share its ids
+            at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
+            groups[id(known_ids)] = (np.flatnonzero(known_ids[at] != ids), [])
+        groups[id(known_ids)][1].append(k)
+        at = np.minimum(np.searchsorted(ids, seen_ids), len(ids) - 1)
+        here = ids[at] == seen_ids  # those of the last call's sensors still here
+        at = at[here]
+        out[at] = np.minimum(out[at], seen[here])  # one sensor each
+        kept.append((seen_ids[here], seen[here]))
+    pairs = [_box_pairs(ends, np.array(members, dtype=np.int64), sensors[:, 0], sensors[:, 1],
+                        cand, reach) for cand, members in groups.values() if members]
+    which = np.concatenate([p[0] for p in pairs])
+    i = np.concatenate([p[1] for p in pairs])
+    # each sensor's heading once (cos and sin are worked out element by element)
+    c, s = np.cos(sensors[:, 2]), np.sin(sensors[:, 2])
+    dist = _distances_in_cones(sensors[i, 0], sensors[i, 1], c[i], s[i], ends, which, half)
+    seen = np.flatnonzero(dist <= max_range)
+    which, i, found = which[seen], i[seen], np.maximum(dist[seen], 0.0)
+    np.minimum.at(out, i, found)
+    order = np.argsort(which, kind="stable")
+    bounds = np.concatenate([[0], np.cumsum(np.bincount(which, minlength=len(features)))])
+    found_ids, found = ids[i[order]], found[order]
+    for k, key in enumerate(keys):
+        a, b = bounds[k], bounds[k + 1]
+        memo.store("predict", key, (ids, np.concatenate([kept[k][0], found_ids[a:b]]),
+                                    np.concatenate([kept[k][1], found[a:b]])))
+    return out
