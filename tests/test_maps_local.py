@@ -598,6 +598,60 @@ def test_merges_are_those_of_every_pair_tested_in_full(corridor):
     assert _same_features(merged, _merged_one_pair_at_a_time(found))
 
 
+def test_features_of_many_runs_at_once_are_those_run_by_run(corridor):
+    from blocks.maps.features import _features_from, _mean_rows, _reflection_points, _refit
+    poses, ranges = corridor
+    sensors = sensor_poses_along(poses, MOUNTS)
+    axis = sensors[..., :2] + ranges[..., None] * np.stack(
+        [np.cos(sensors[..., 2]), np.sin(sensors[..., 2])], axis=-1)
+    rng = np.random.default_rng(14)
+    runs = []
+    for _ in range(60):  # runs of echoes of one sensor: some along a wall, some not
+        j, a = int(rng.integers(16)), int(rng.integers(0, len(poses) - 40))
+        run = np.arange(a, a + int(rng.integers(2, 40)))
+        runs.append((axis[run, j], sensors[run, j], ranges[run, j]))
+    half = math.radians(15)
+    want = []
+    for points, sens, r in runs:  # _feature_from as it was written, one run at a time
+        centre, direction = _fit_line(points)
+        normal = np.array([-direction[1], direction[0]])
+        seen_from = _mean_rows(sens[:, :2])
+        normal = -normal if np.dot(seen_from - centre, normal) < 0 else normal
+        wall = _reflection_points(sens, r, normal, half)
+        want.append(_refit(wall, seen_from - _mean_rows(wall)))
+    got = _features_from(runs, half)
+    assert _same_features(got, want)
+    assert all(np.array_equal(f.normal, g.normal) for f, g in zip(got, want))
+    assert _features_from([], half) == []
+
+
+def test_a_bent_run_is_no_feature():
+    """A sensor passing a gently curved wall: every recent stretch is straight enough to
+    go on the run, the whole run is not (its reflection points' residual is above the
+    tolerance), so it gives no feature; a flatter curve gives one."""
+    x = np.arange(0, 3.0, 0.05)
+    poses = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    sensors = sensor_poses_along(poses, np.array([[0.0, 0.0, math.pi / 2]]))
+    found = []
+    for bend in (0.04, 0.06):
+        ranges = (1 + bend * (x - 1.5) ** 2)[:, None]
+        found.append(extract_linear_features(sensors, ranges, ranges < 3.9, line_tol=0.04))
+    assert [len(f) for f in found] == [1, 0]
+    assert found[0][0].support == len(x) and 0.02 < found[0][0].residual < 0.04
+
+
+def test_a_run_that_ends_where_it_began_is_no_feature():
+    """Out along a wall and back: the echoes span 0.5 m, but the run's first and last lie
+    closer than ``min_length`` (a robot turning back), so it is not fitted at all."""
+    x = np.concatenate([np.arange(0, 0.5, 0.05), np.arange(0.5, 0.0, -0.05)])
+    poses = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    sensors = sensor_poses_along(poses, np.array([[0.0, 0.0, math.pi / 2]]))
+    ranges = np.ones((len(x), 1))
+    assert extract_linear_features(sensors, ranges, ranges < 3.9, min_length=0.3) == []
+    assert len(extract_linear_features(sensors[:12], ranges[:12], ranges[:12] < 3.9,
+                                       min_length=0.3)) == 1
+
+
 def test_line_fits_without_mean_are_the_fits_with_it():
     from blocks.maps.features import _mean_rows, _refit
     rng = np.random.default_rng(11)

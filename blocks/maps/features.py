@@ -104,7 +104,14 @@ def _reflection_points(sensors: np.ndarray, ranges: np.ndarray, normal: np.ndarr
     else along the cone edge nearest to it.  Using the beam axis instead
     would put echoes of oblique walls in front of the wall.
     """
-    toward = math.atan2(-normal[1], -normal[0])
+    return _wall_points(sensors, ranges, math.atan2(-normal[1], -normal[0]), half_cone)
+
+
+def _wall_points(sensors: np.ndarray, ranges: np.ndarray, toward: float | np.ndarray,
+                 half_cone: float) -> np.ndarray:
+    """:func:`_reflection_points` with the direction ``toward`` the wall (rad; one for all
+    echoes or one each): element by element, so echoes of many runs at once give what
+    they give run by run."""
     offset = (toward - sensors[:, 2] + np.pi) % (2 * np.pi) - np.pi
     heading = sensors[:, 2] + np.clip(offset, -half_cone, half_cone)
     return sensors[:, :2] + ranges[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
@@ -114,13 +121,36 @@ def _feature_from(points: np.ndarray, sensors: np.ndarray, ranges: np.ndarray,
                   half_cone: float) -> LinearFeature:
     """Fit a feature to one run of echoes (axis points give the direction, then the
     reflection points give the line's offset and extent)."""
-    centre, direction = _fit_line(points)
-    normal = np.array([-direction[1], direction[0]])
-    seen_from = _mean_rows(sensors[:, :2])
-    if np.dot(seen_from - centre, normal) < 0:
-        normal = -normal
-    wall = _reflection_points(sensors, ranges, normal, half_cone)
-    return _refit(wall, seen_from - _mean_rows(wall))
+    return _features_from([(points, sensors, ranges)], half_cone)[0]
+
+
+def _features_from(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                   half_cone: float) -> list[LinearFeature]:
+    """:func:`_feature_from` of many runs (axis points, sensors, ranges): the reflection
+    points of all their echoes worked out at once (element by element, as run by run);
+    the line fits run by run, as their sums go through BLAS dot products whose order
+    depends on the arrays."""
+    towards, seen = [], []
+    for points, sensors, _ in runs:
+        centre, direction = _fit_line(points)
+        normal = np.array([-direction[1], direction[0]])
+        seen_from = _mean_rows(sensors[:, :2])
+        if np.dot(seen_from - centre, normal) < 0:
+            normal = -normal
+        towards.append(math.atan2(-normal[1], -normal[0]))
+        seen.append(seen_from)
+    if not runs:
+        return []
+    sizes = [len(points) for points, _, _ in runs]
+    wall = _wall_points(np.concatenate([sensors for _, sensors, _ in runs]),
+                        np.concatenate([ranges for _, _, ranges in runs]),
+                        np.repeat(towards, sizes), half_cone)
+    out, at = [], 0
+    for n, seen_from in zip(sizes, seen):
+        points = wall[at:at + n].copy()  # each run's own array, as one at a time
+        out.append(_refit(points, seen_from - _mean_rows(points)))
+        at += n
+    return out
 
 
 def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
@@ -172,17 +202,16 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
     axis = sensors[..., :2] + ranges[..., None] * np.stack(
         [np.cos(sensors[..., 2]), np.sin(sensors[..., 2])], axis=-1)
 
-    def candidate(j: int, run: np.ndarray) -> LinearFeature | None:
-        """The feature of a run, if it is long and straight enough (see :func:`_explains`)."""
+    def worth_fitting(j: int, run: np.ndarray) -> bool:
+        """Enough echoes, far enough apart, for a feature (see :func:`_explains`)."""
         if len(run) < min_points:
-            return None
+            return False
         pts = axis[run, j]
-        if np.hypot(*(pts[-1] - pts[0])) < min_length:
-            return None
-        feature = _feature_from(pts, sensors[run, j], ranges[run, j], half)
-        if feature.length >= min_length and feature.residual <= line_tol:
-            return feature
-        return None
+        return not np.hypot(*(pts[-1] - pts[0])) < min_length
+
+    def straight(feature: LinearFeature) -> bool:
+        """A fitted run long and straight enough to be checked against its readings."""
+        return feature.length >= min_length and feature.residual <= line_tol
 
     def breaks_line(j: int, tail: np.ndarray, t: int) -> bool:
         # the recent part only: odometry drift bends long walls
@@ -218,18 +247,24 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
     def features_of(runs: list[tuple[int, np.ndarray]]) -> list[LinearFeature | None]:
         """Each run's feature, or None; the readings check of all runs at once."""
         out: list[LinearFeature | None] = [None] * len(runs)
-        checks = []
+        fits = []  # (index, axis points, sensors, ranges) of the runs to fit
         for i, (j, run) in enumerate(runs):
             key = None if memo is None else (j, ids[run].tobytes())
             found = None if key is None else memo.get("run", key)
             if found is not None:
                 out[i] = found[0]
                 continue
-            feature = candidate(j, run)
-            if feature is not None:
-                checks.append((i, feature, sensors[run, j], ranges[run, j]))
+            if worth_fitting(j, run):
+                fits.append((i, axis[run, j], sensors[run, j], ranges[run, j]))
             elif key is not None:
                 memo.store("run", key, (None,))
+        checks = []
+        for (i, _, sens, rng), feature in zip(fits, _features_from([f[1:] for f in fits], half)):
+            if straight(feature):
+                checks.append((i, feature, sens, rng))
+            elif memo is not None:
+                j, run = runs[i]
+                memo.store("run", (j, ids[run].tobytes()), (None,))
         if checks:
             fine = _explained(checks, cone_deg, 2 * line_tol)
             for (i, feature, _, _), ok in zip(checks, fine):
