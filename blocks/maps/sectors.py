@@ -178,26 +178,32 @@ def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: in
     cone on the rows it reaches), which changes no sum; else every row within
     the disk's reach is drawn, as the sums' rounding then depends on it.
     """
-    pieces = list(_run_pieces(spans, beams, corner, stride, exact, None))
-    return np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces])
+    parts = [part for piece in _run_pieces(spans, beams, corner, stride, exact, None)
+             for part in piece]
+    return (np.concatenate([index for index, _, _ in parts]),
+            np.concatenate([np.negative(value) if taken else value for _, value, taken in parts]))
 
 
 def add_runs(flat: np.ndarray, spans: ConeSpans, beams: Beams, corner: tuple[int, int],
              stride: int, *, check: bool = False) -> None:
     """Add the entries of :func:`run_ends` (``exact``) to the difference grid ``flat``
     (raveled), :data:`RUN_PIECE` runs at a time; with ``check``, first make sure that
-    each lands inside it."""
-    for index, value in _run_pieces(spans, beams, corner, stride, True, RUN_PIECE):
-        if check and index.size and (index.min() < 0 or index.max() >= flat.size):
+    each lands inside it.  The run starts and ends are added and taken away part by
+    part, without joining them or negating values first (the sums are exact)."""
+    for piece in _run_pieces(spans, beams, corner, stride, True, RUN_PIECE):
+        if check and any(index.size and (index.min() < 0 or index.max() >= flat.size)
+                         for index, _, _ in piece):
             raise ValueError("a reading's cone reaches outside the grid")
-        np.add.at(flat, index, value)
+        for index, value, taken in piece:
+            (np.subtract if taken else np.add).at(flat, index, value)
 
 
 def _run_pieces(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: int,
                 exact: bool, budget: int | None
-                ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+                ) -> Iterator[list[tuple[np.ndarray, np.ndarray, bool]]]:
     """:func:`run_ends` in pieces of about ``budget`` runs (None: one piece, run starts
-    then run ends, in the order of :func:`beam_terms`)."""
+    then run ends, in the order of :func:`beam_terms`), each piece as parts (flat
+    indices, log-odds, whether they are taken away instead of added)."""
     if exact:  # the rings of beam_rings on the rows where their two cuts differ
         beam, outer, inner, value = beam_rings(beams, spans.limit)
         order = np.argsort(inner > 0, kind="stable")  # whole cones first, then the rings
@@ -217,15 +223,14 @@ def _run_pieces(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride:
         runs = _RunTables(spans, beams, beam[part], corner, stride, e0[part], n[part])
         a, b = runs.cut(outer[part])
         v = np.repeat(value[part], n[part])
-        index, values = [a, b], [v, -v]
+        parts = [(a, v, False), (b, v, True)]
         rings = inner[part] > 0
         cones = int(np.searchsorted(rings, True))  # the rings come last
         if cones < len(rings):  # and their inner cuts (a whole cone's S(0) is empty)
             a_in, b_in = runs.cut(inner[part][cones:], cones)
             ring_v = v[int(n[part][:cones].sum()):]
-            index += [a_in, b_in]
-            values += [-ring_v, ring_v]
-        yield np.concatenate(index), np.concatenate(values)
+            parts += [(a_in, ring_v, True), (b_in, ring_v, False)]
+        yield parts
 
 
 def _pieces(n: np.ndarray, budget: int | None) -> Iterator[slice]:
