@@ -156,7 +156,8 @@ def test_weights_that_do_not_sum_exactly_are_never_kept():
     for _ in range(2):
         got = sums(np.arange(50), odd, (0, 0), (60, 60))
     assert sums.readings_drawn == 100  # drawn from scratch both times
-    assert np.allclose(got, sum_beams(sums.spans, odd, (0, 0), (60, 60)))
+    # the same sums, rounded the same way (running sums in np.cumsum's order)
+    assert np.array_equal(got, sum_beams(sums.spans, odd, (0, 0), (60, 60)))
 
 
 # ---- features ---------------------------------------------------------------------------------
@@ -542,6 +543,35 @@ def test_runs_added_a_piece_at_a_time_are_the_run_ends(monkeypatch, piece):
     assert np.array_equal(grid, np.bincount(index, value, minlength=cells))
     with pytest.raises(ValueError, match="outside the grid"):
         sectors.add_runs(np.zeros(cells), spans, beams, (20, 0), size + 1, check=True)
+
+
+@pytest.mark.parametrize("width", [1, 7, 32, 33, 64, 95])
+def test_block_sums_are_the_running_sums_of_exact_terms(width):
+    from blocks.maps.sectors import block_sums
+    rng = np.random.default_rng(15)
+    diff = np.zeros((40, 96))
+    values = np.float32([-0.4, 0.85, -0.2, 0.425]).astype(np.float64)
+    for row in diff:  # runs: a value at the start, taken back after the end
+        start = rng.integers(0, 96, 30)
+        stop = np.minimum(start + rng.integers(1, 60, 30), 95)
+        value = rng.choice(values, 30)
+        np.add.at(row, start, value)
+        np.subtract.at(row, stop, value)
+    want = np.cumsum(diff, axis=1)[:, :width]
+    for block in (None, 1, 3, 8):
+        got = block_sums(diff, width, block)
+        assert got.shape == want.shape and np.array_equal(got, want), block
+        assert not np.signbit(got[got == 0]).any()
+
+
+def test_running_sums_that_round_keep_cumsum_order():
+    from blocks.maps.sectors import _integrate, block_sums
+    rng = np.random.default_rng(16)
+    diff = rng.normal(0, 1, (30, 200)) * 0.1  # sums that round, differently in blocks
+    want = np.cumsum(diff, axis=1)[:, :199]
+    assert np.array_equal(_integrate(diff, 199), want)
+    assert not np.array_equal(block_sums(diff, 199), want)
+    assert np.allclose(block_sums(diff, 199), want)
 
 
 def test_cone_distances_pass_over_only_pairs_found_inf():
