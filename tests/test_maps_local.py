@@ -682,6 +682,42 @@ def test_a_run_that_ends_where_it_began_is_no_feature():
                                        min_length=0.3)) == 1
 
 
+def _piece(rng: np.random.Generator, angle: float, n: int, start: float):
+    """A wall piece of n echoes through near the origin, at ``angle``."""
+    from blocks.maps.features import _refit
+    d = np.array([math.cos(angle), math.sin(angle)])
+    t = np.sort(rng.uniform(start, start + rng.uniform(0.3, 1.5), n))
+    return _refit(t[:, None] * d + rng.normal(0, 0.005, (n, 2)), np.array([-d[1], d[0]]))
+
+
+def test_merges_of_pieces_turned_a_little_are_those_of_every_pair_tested_in_full():
+    """Pieces within a few degrees of each other: a merge turns the merged wall, and the
+    pieces after it are tested against the turned wall."""
+    rng = np.random.default_rng(17)
+    merged_some = 0
+    for _ in range(150):
+        pieces = [_piece(rng, math.radians(rng.uniform(-9, 9)), int(rng.integers(6, 40)),
+                         rng.uniform(-1, 1)) for _ in range(int(rng.integers(3, 7)))]
+        got = merge_features(pieces)
+        assert _same_features(got, _merged_one_pair_at_a_time(pieces))
+        merged_some += len(got) < len(pieces)
+    assert merged_some > 50
+
+
+def test_pieces_exactly_at_the_offset_bound_merge():
+    """End points exactly ``offset_tol`` off the line: too close to call in plain floats,
+    decided by the full test (within the bound: they merge)."""
+    from blocks.maps.features import LinearFeature
+    x = np.linspace(0.0, 1.0, 10)
+    a = LinearFeature(np.array([0.0, 0.0]), np.array([1.0, 0.0]), np.array([0.0, 1.0]),
+                      np.column_stack([x, np.zeros(10)]), 0.0)
+    b = LinearFeature(np.array([0.0, 0.25]), np.array([1.0, 0.25]), np.array([0.0, 1.0]),
+                      np.column_stack([x, np.full(10, 0.25)]), 0.0)
+    assert len(merge_features([a, b], offset_tol=0.25)) == 1
+    assert len(merge_features([a, b], offset_tol=0.2499)) == 2
+    assert len(merge_features([a, b], offset_tol=0.25 - 1e-12)) == 2  # unsure, then out
+
+
 def test_line_fits_without_mean_are_the_fits_with_it():
     from blocks.maps.features import _mean_rows, _refit
     rng = np.random.default_rng(11)

@@ -676,57 +676,50 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
     cos_tol = math.cos(angle_tol)
     if memo is not None:
         memo.configure("merge", (angle_tol_deg, offset_tol, max_gap))
-    known: dict[int, tuple] = {}  # per feature met (kept alive here): its numbers as floats
 
     def numbers(f: LinearFeature) -> tuple:
-        entry = known.get(id(f))
-        if entry is None:
-            serial, length = memo.serial(f) if memo is not None else (-1, f.length)
-            entry = known[id(f)] = (*f.normal.tolist(), *f.p0.tolist(), *f.p1.tolist(),
-                                    length, serial, f)
-        return entry
+        """The feature's numbers as floats, carried with it through the passes: (nx, ny,
+        x0, y0, x1, y1, length, serial, the feature, support)."""
+        serial, length = memo.serial(f) if memo is not None else (-1, f.length)
+        return (*f.normal.tolist(), *f.p0.tolist(), *f.p1.tolist(), length, serial, f,
+                f.support)
 
-    def order(f: LinearFeature) -> tuple[int, float]:
-        return -f.support, -numbers(f)[6]
+    def order(e: tuple) -> tuple[int, float]:
+        return -e[9], -e[6]
 
-    def mergeable(g: LinearFeature, f: LinearFeature) -> bool:
-        sure = _mergeable_quick(numbers(g), numbers(f), cos_tol, offset_tol, max_gap)
-        return _mergeable(g, f, angle_tol, offset_tol, max_gap) if sure is None else sure
+    def mergeable(g: tuple, f: tuple) -> bool:
+        sure = _mergeable_quick(g, f, cos_tol, offset_tol, max_gap)
+        return _mergeable(g[8], f[8], angle_tol, offset_tol, max_gap) if sure is None else sure
 
-    def merged(g: LinearFeature, f: LinearFeature) -> LinearFeature:
+    def merged(g: tuple, f: tuple) -> tuple:
+        a, b = g[8], f[8]
         if memo is None:
-            return _refit(np.vstack([g.points, f.points]), g.normal)
-        return memo.lookup("merged", (numbers(g)[7], numbers(f)[7]),
-                           lambda: _refit(np.vstack([g.points, f.points]), g.normal))
+            return numbers(_refit(np.vstack([a.points, b.points]), a.normal))
+        return numbers(memo.lookup("merged", (g[7], f[7]),
+                                   lambda: _refit(np.vstack([a.points, b.points]), a.normal)))
 
-    pool = sorted(features, key=order)
+    pool = sorted((numbers(f) for f in features), key=order)
     merged_any = True
     while merged_any:
         merged_any = False
-        in_pool = {id(f) for f in pool}
-        out: list[LinearFeature] = []
+        out: list[tuple] = []
         facing: list[tuple[float, float]] = []  # each kept feature's normal
         for f in pool:
-            fx, fy = numbers(f)[:2]
+            fx, fy = f[0], f[1]
             for i, (gx, gy) in enumerate(facing):
                 # most pairs face different ways: _mergeable_quick's first test, inline
                 if gx * fx + gy * fy - cos_tol < -_QUICK_SLACK:
                     continue
-                g = out[i]
-                if mergeable(g, f):
-                    out[i] = merged(g, f)
-                    facing[i] = numbers(out[i])[:2]
+                if mergeable(out[i], f):
+                    g = out[i] = merged(out[i], f)
+                    facing[i] = g[0], g[1]
                     merged_any = True
-                    if id(g) not in in_pool:  # a merge made in this pass, merged again:
-                        del known[id(g)]  # let it go (a long wall's would add up to GBs)
                     break
             else:
                 out.append(f)
                 facing.append((fx, fy))
         pool = sorted(out, key=order)
-        kept = {id(f) for f in pool}
-        known = {key: entry for key, entry in known.items() if key in kept}
-    return pool
+    return [e[8] for e in pool]
 
 
 def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg: float,
