@@ -427,6 +427,24 @@ def test_readings_checks_at_once_are_the_checks_one_by_one(corridor):
     assert any(want) and not all(want)
 
 
+def test_segments_without_line_breaks_are_those_first_break_passes_over():
+    from blocks.maps.features import _no_line_breaks
+    rng = np.random.default_rng(18)
+    recent = 6
+    for _ in range(300):
+        lengths = rng.integers(1, 16, int(rng.integers(1, 6)))
+        status = np.zeros((int(lengths.sum()), recent + 1), dtype=np.int8)
+        hits = rng.integers(0, status.size, int(rng.integers(0, 3)))
+        status.ravel()[hits] = rng.integers(1, 3, len(hits))
+        want, at = [], 0
+        for n in lengths.tolist():  # what first_break reads from a segment's first echo
+            part = status[at:at + n]
+            short, long = part[0, 3:min(recent, n)], part[:max(0, n - recent), recent]
+            want.append(not np.concatenate([short, long]).any())
+            at += n
+        assert _no_line_breaks(status, lengths, recent).tolist() == want
+
+
 def test_line_tests_need_three_echoes():
     with pytest.raises(ValueError, match="recent"):
         extract_linear_features(np.zeros((2, 1, 3)), np.ones((2, 1)), np.ones((2, 1), bool),

@@ -202,12 +202,16 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
     axis = sensors[..., :2] + ranges[..., None] * np.stack(
         [np.cos(sensors[..., 2]), np.sin(sensors[..., 2])], axis=-1)
 
-    def worth_fitting(j: int, run: np.ndarray) -> bool:
-        """Enough echoes, far enough apart, for a feature (see :func:`_explains`)."""
-        if len(run) < min_points:
-            return False
-        pts = axis[run, j]
-        return not np.hypot(*(pts[-1] - pts[0])) < min_length
+    def worth_fitting(runs: list[tuple[int, np.ndarray]]) -> list[bool]:
+        """Per run: enough echoes, the first and last far enough apart, for a feature (see
+        :func:`_explains`); all runs at once (``hypot`` element by element)."""
+        if not runs:
+            return []
+        sensor = np.array([j for j, _ in runs])
+        step = axis[[run[-1] for _, run in runs], sensor] \
+            - axis[[run[0] for _, run in runs], sensor]
+        return ((np.array([len(run) for _, run in runs]) >= min_points)
+                & ~(np.hypot(step[:, 0], step[:, 1]) < min_length)).tolist()
 
     def straight(feature: LinearFeature) -> bool:
         """A fitted run long and straight enough to be checked against its readings."""
@@ -248,13 +252,13 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
         """Each run's feature, or None; the readings check of all runs at once."""
         out: list[LinearFeature | None] = [None] * len(runs)
         fits = []  # (index, axis points, sensors, ranges) of the runs to fit
-        for i, (j, run) in enumerate(runs):
+        for i, ((j, run), worth) in enumerate(zip(runs, worth_fitting(runs))):
             key = None if memo is None else (j, ids[run].tobytes())
             found = None if key is None else memo.get("run", key)
             if found is not None:
                 out[i] = found[0]
                 continue
-            if worth_fitting(j, run):
+            if worth:
                 fits.append((i, axis[run, j], sensors[run, j], ranges[run, j]))
             elif key is not None:
                 memo.store("run", key, (None,))
@@ -294,18 +298,22 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
                 todo.append((len(slots), j, rows[a:b], key))
             slots.append(found)
     if todo:
-        flat = np.concatenate([axis[part, j] for _, j, part, _ in todo])
+        lengths = np.array([len(part) for _, _, part, _ in todo])
+        scan = np.concatenate([part for _, _, part, _ in todo])
+        sensor = np.repeat([j for _, j, _, _ in todo], lengths)
+        flat = axis[scan, sensor]
         if memo is None:
             status = _line_tests(flat, recent, line_tol)
         else:  # each echo named by its scan and sensor, unique in the segments
-            names = np.concatenate([ids[part] * sensors.shape[1] + j for _, j, part, _ in todo])
-            lengths = np.array([len(part) for _, _, part, _ in todo])
+            names = ids[scan] * sensors.shape[1] + sensor
             status = memo.line_tests(flat, _echo_windows(names, lengths, recent), line_tol)
+        straight_through = _no_line_breaks(status, lengths, recent).tolist()
         at = 0
         runs: list[tuple[int, np.ndarray]] = []
         owner: list[int] = []
         for n, (_, j, part, _) in enumerate(todo):
-            for run in segment(j, part, status[at:at + len(part)]):
+            for run in ([part] if straight_through[n] else
+                        segment(j, part, status[at:at + len(part)])):
                 runs.append((j, run))
                 owner.append(n)
             at += len(part)
@@ -403,6 +411,36 @@ def _line_test_rows(pts: np.ndarray, starts: np.ndarray, recent: int,
     status[:, :3] = _KEEPS
     status[(starts[None, :] + offsets >= n).T] = _KEEPS  # past the last echo
     return status
+
+
+def _no_line_breaks(status: np.ndarray, lengths: np.ndarray, recent: int) -> np.ndarray:
+    """Per segment (of ``lengths``, one after the other in ``status``): does no echo leave
+    the line of the run from its first echo, not even unsure (:func:`_line_tests`'
+    entries, as ``first_break`` reads them from the start)?  Then the segment is one run.
+
+    Why: most segments are one straight run; this settles them all at once, where
+    ``first_break`` looks at each in Python.
+
+    Examples
+    --------
+    >>> status = np.zeros((7, 5), dtype=np.int8)
+    >>> status[5, 4] = _UNSURE  # echo 5 + 4 is past its segment (5..6): not read
+    >>> _no_line_breaks(status, np.array([4, 3]), 4).tolist()
+    [True, True]
+    >>> status[0, 3] = _BREAKS  # echo 3 leaves the line through echoes 0..2
+    >>> _no_line_breaks(status, np.array([4, 3]), 4).tolist()
+    [False, True]
+    """
+    first = np.cumsum(lengths) - lengths
+    end = np.repeat(first + lengths, lengths)
+    rows = np.arange(len(status))
+    # from the segment's first echo, tails of 3..recent - 1 echoes inside the segment
+    head = (status[first, 3:recent] != 0) & (
+        first[:, None] + np.arange(3, recent)[None, :] < (first + lengths)[:, None])
+    # then every echo k, tested against the recent echoes before it: rows k - recent
+    tail = (status[:, recent] != 0) & (rows + recent < end)
+    broken = head.any(axis=1) | (np.add.reduceat(tail, first) > 0 if len(first) else False)
+    return ~broken
 
 
 def _echo_windows(names: np.ndarray, lengths: np.ndarray, recent: int) -> np.ndarray:
