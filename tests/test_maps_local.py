@@ -146,6 +146,42 @@ def test_kept_sums_give_the_sums_from_scratch_whatever_changes():
     assert sums.readings_drawn < 0.6 * drawn_from_scratch
 
 
+def test_the_kept_sums_to_start_from_change_the_fewest_readings():
+    """Against every kept call's cost worked out in full: windows that overlap, touch at
+    one key, or lie apart."""
+    from blocks.maps import sectors
+    rng = np.random.default_rng(19)
+    reach, size = 12, 80
+    pool, _ = _random_beams(rng, 500, size, reach)
+    spans = cone_spans(0.1, 30.0, reach)
+    table = pool.table()
+    for trial in range(20):
+        sums = BeamSums(spans, keep=6)
+        for _ in range(6):  # kept calls: windows of the pool, some readings changed
+            a = int(rng.integers(0, 400))
+            keys = np.arange(a, a + int(rng.integers(1, 100)))
+            changed = table[keys].copy()
+            changed[rng.uniform(size=len(keys)) < 0.1, 3] += 1
+            sums._states.insert(0, sectors._State(keys, changed, pool.take(keys), (0, 0),
+                                                  np.zeros((1, 2))))
+        a = int(rng.integers(0, 400))
+        keys = np.arange(a, a + int(rng.integers(1, 100)))
+        if trial % 3 == 0:  # touching a kept window at its last key
+            keys = np.arange(sums._states[0].keys[-1], sums._states[0].keys[-1] + 50)
+        costs = []
+        for state in sums._states:
+            shared, i_old, i_new = np.intersect1d(state.keys, keys, return_indices=True)
+            same = (state.table[i_old] == table[keys][i_new]).all(axis=1)
+            costs.append(len(state.keys) + len(keys) - 2 * int(same.sum()))
+        best, plan = sums._best_start(keys, table[keys])
+        if min(costs) >= len(keys):
+            assert best is None
+        else:
+            assert best is not None
+            assert len(plan[0]) + len(plan[1]) == min(costs)
+            assert costs[[id(s) for s in sums._states].index(id(best))] == min(costs)
+
+
 def test_weights_that_do_not_sum_exactly_are_never_kept():
     rng = np.random.default_rng(4)
     beams, _ = _random_beams(rng, 50, 60, 12)

@@ -448,11 +448,17 @@ class BeamSums:
         """The kept call that needs the fewest readings changed, and what to change."""
         best, best_cost, best_plan = None, len(keys), None
         for state in self._states:
-            at = np.minimum(np.searchsorted(state.keys, keys), len(state.keys) - 1)
-            i_new = np.flatnonzero(state.keys[at] == keys)  # keys sorted and unique in both
+            # only the new keys within the kept ones' range can be shared (both sorted)
+            lo = int(np.searchsorted(keys, state.keys[0]))
+            hi = int(np.searchsorted(keys, state.keys[-1], side="right"))
+            if len(state.keys) + len(keys) - 2 * (hi - lo) >= best_cost:
+                continue  # even if all of them were shared and the same, no cheaper
+            at = np.minimum(np.searchsorted(state.keys, keys[lo:hi]), len(state.keys) - 1)
+            i_new = np.flatnonzero(state.keys[at] == keys[lo:hi])  # unique in both
             if len(state.keys) + len(keys) - 2 * len(i_new) >= best_cost:
                 continue  # even if every shared reading were the same, no cheaper
             i_old = at[i_new]
+            i_new += lo
             same = (state.table[i_old] == table[i_new]).all(axis=1)
             kept_old = np.zeros(len(state.keys), dtype=bool)
             kept_old[i_old[same]] = True
