@@ -182,6 +182,24 @@ def test_the_kept_sums_to_start_from_change_the_fewest_readings():
             assert costs[[id(s) for s in sums._states].index(id(best))] == min(costs)
 
 
+def test_fraction_bits_are_the_least_power_that_makes_every_value_whole():
+    from blocks.maps.sectors import fraction_bits
+    rng = np.random.default_rng(20)
+    sets = [rng.normal(0, 3, 9), rng.normal(0, 3, 9).astype(np.float32).astype(np.float64),
+            np.float32([-0.4, 0.85, -0.2, 0.425]).astype(np.float64),
+            np.array([5e-324, 3.0]), np.array([6 * 2.0 ** -1074]), np.array([1e300, 2.0]),
+            np.array([1.0, 2.0, 3.0]), np.array([0.5, -0.75])]
+    sets += [rng.integers(-999, 999, 5) * 2.0 ** int(k) for k in rng.integers(-70, 20, 30)]
+    for values in sets:
+        values = values[values != 0]
+        e = 0  # as exact_weights tried it: e = 0, 1, ... until every value is whole
+        with np.errstate(over="ignore"):  # inf is whole
+            while e <= 1100 and not (np.ldexp(values, e) == np.round(np.ldexp(values, e))
+                                     ).all():
+                e += 1
+        assert fraction_bits(values) == e, values
+
+
 def test_weights_that_do_not_sum_exactly_are_never_kept():
     rng = np.random.default_rng(4)
     beams, _ = _random_beams(rng, 50, 60, 12)

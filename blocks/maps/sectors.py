@@ -35,7 +35,7 @@ import numpy as np
 from .cones import ConeSpans
 
 __all__ = ["BeamSums", "Beams", "add_runs", "beam_rings", "beam_terms", "block_sums",
-           "exact_weights", "run_ends", "sum_beams"]
+           "exact_weights", "fraction_bits", "run_ends", "sum_beams"]
 
 
 @dataclass(frozen=True)
@@ -373,13 +373,33 @@ def exact_weights(values: np.ndarray, readings: int) -> bool:
         return True
     if not np.isfinite(values).all():
         return False
-    values = np.unique(values)
-    e = 0
-    while e <= 60 and not (np.ldexp(values, e) == np.round(np.ldexp(values, e))).all():
-        e += 1
+    e = fraction_bits(values)
     if e > 60:
         return False
     return readings * float(np.abs(values).max()) < 2.0 ** (52 - e)
+
+
+def fraction_bits(values: np.ndarray) -> int:
+    """The least ``e >= 0`` with every value (finite, non-zero float64) a whole multiple of
+    ``2**-e``: read off each value's bits (its odd mantissa's exponent), where trying
+    ``e = 0, 1, ...`` on the distinct values would sort them first.
+
+    Examples
+    --------
+    >>> fraction_bits(np.array([3.0, 0.75, -0.125]))  # 0.125 = 2**-3
+    3
+    >>> fraction_bits(np.array([6.0, 1e300]))
+    0
+    """
+    bits = np.abs(np.asarray(values, dtype=np.float64)).view(np.int64)
+    biased = bits >> 52
+    # the mantissa with its leading bit (none below the normal numbers, where the bits
+    # below are not all 0, so setting it leaves the lowest set bit as it is)
+    mantissa = (bits & ((1 << 52) - 1)) | (1 << 52)
+    lowest = mantissa & -mantissa  # its lowest set bit, a power of two up to 2**52
+    odd_exponent = np.frexp(lowest.astype(np.float64))[1] - 1 \
+        + np.maximum(biased, 1) - 1075  # value = odd * 2**odd_exponent
+    return int(max(0, -int(odd_exponent.min())))
 
 
 def _joined(gone: Beams, new: Beams) -> Beams:
