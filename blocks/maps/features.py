@@ -768,9 +768,10 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
     ``sensors`` is (M, 3).  Uses the simulator's exact cone geometry
     (:func:`sim2d.sonar.cone_ranges`), so a prediction is what a sonar would
     read if the features were the only walls.  With a :class:`FeatureMemo`
-    and ``ids`` (M,) naming the sensor poses, each feature's ranges for poses
-    it was met with in the last call are looked up (same result: the
-    geometry is worked out element by element, the nearest taken exactly).
+    and ``ids`` (M,) naming the sensor poses (increasing), each feature's ranges
+    for poses it was met with in the last call are looked up (same result: the
+    geometry is worked out element by element, the nearest taken exactly; see
+    :func:`_kept_predictions`).
     """
     from sim2d.sonar import cone_ranges_near
 
