@@ -406,6 +406,24 @@ def test_sonar_visibility_in_chunks_equals_visibility_at_once():
     assert np.array_equal(sonar_visible(world, sensors, chunk=7), whole)  # the last one short
 
 
+def test_end_cells_of_all_features_at_once_are_those_one_by_one():
+    from blocks.maps.features import LinearFeature
+    from blocks.maps.offline import _end_cells
+    rng = np.random.default_rng(22)
+    res, corner = 0.025, (-40, 10)
+    # ends anywhere, and some exactly on cell edges (x.5 after the shift: rounded to even)
+    ends = np.concatenate([rng.uniform(-3, 3, (30, 4)),
+                           (np.arange(40).reshape(10, 4) + corner[0] + 0.5) * res])
+    features = [LinearFeature(e[:2], e[2:], np.array([0.0, 1.0]), np.zeros((3, 2)), 0.0)
+                for e in ends]
+    first, last = _end_cells(features, corner, res)
+    for f, a, b in zip(features, first, last):
+        assert np.array_equal(a, np.round(f.p0 / res - np.array(corner) - 0.5).astype(int))
+        assert np.array_equal(b, np.round(f.p1 / res - np.array(corner) - 0.5).astype(int))
+    assert first.shape == last.shape == (40, 2)
+    assert [a.shape for a in _end_cells([], corner, res)] == [(0, 2), (0, 2)]
+
+
 @pytest.mark.parametrize("spill", [False, True])
 def test_features_drawn_on_their_window_are_those_drawn_on_the_whole_grid(spill):
     import cv2

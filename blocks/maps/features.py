@@ -104,7 +104,14 @@ def _reflection_points(sensors: np.ndarray, ranges: np.ndarray, normal: np.ndarr
     else along the cone edge nearest to it.  Using the beam axis instead
     would put echoes of oblique walls in front of the wall.
     """
-    toward = math.atan2(-normal[1], -normal[0])
+    return _wall_points(sensors, ranges, math.atan2(-normal[1], -normal[0]), half_cone)
+
+
+def _wall_points(sensors: np.ndarray, ranges: np.ndarray, toward: float | np.ndarray,
+                 half_cone: float) -> np.ndarray:
+    """:func:`_reflection_points` with the direction ``toward`` the wall (rad; one for all
+    echoes or one each): element by element, so echoes of many runs at once give what
+    they give run by run."""
     offset = (toward - sensors[:, 2] + np.pi) % (2 * np.pi) - np.pi
     heading = sensors[:, 2] + np.clip(offset, -half_cone, half_cone)
     return sensors[:, :2] + ranges[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
@@ -114,13 +121,36 @@ def _feature_from(points: np.ndarray, sensors: np.ndarray, ranges: np.ndarray,
                   half_cone: float) -> LinearFeature:
     """Fit a feature to one run of echoes (axis points give the direction, then the
     reflection points give the line's offset and extent)."""
-    centre, direction = _fit_line(points)
-    normal = np.array([-direction[1], direction[0]])
-    seen_from = _mean_rows(sensors[:, :2])
-    if np.dot(seen_from - centre, normal) < 0:
-        normal = -normal
-    wall = _reflection_points(sensors, ranges, normal, half_cone)
-    return _refit(wall, seen_from - _mean_rows(wall))
+    return _features_from([(points, sensors, ranges)], half_cone)[0]
+
+
+def _features_from(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                   half_cone: float) -> list[LinearFeature]:
+    """:func:`_feature_from` of many runs (axis points, sensors, ranges): the reflection
+    points of all their echoes worked out at once (element by element, as run by run);
+    the line fits run by run, as their sums go through BLAS dot products whose order
+    depends on the arrays."""
+    towards, seen = [], []
+    for points, sensors, _ in runs:
+        centre, direction = _fit_line(points)
+        normal = np.array([-direction[1], direction[0]])
+        seen_from = _mean_rows(sensors[:, :2])
+        if np.dot(seen_from - centre, normal) < 0:
+            normal = -normal
+        towards.append(math.atan2(-normal[1], -normal[0]))
+        seen.append(seen_from)
+    if not runs:
+        return []
+    sizes = [len(points) for points, _, _ in runs]
+    wall = _wall_points(np.concatenate([sensors for _, sensors, _ in runs]),
+                        np.concatenate([ranges for _, _, ranges in runs]),
+                        np.repeat(towards, sizes), half_cone)
+    out, at = [], 0
+    for n, seen_from in zip(sizes, seen):
+        points = wall[at:at + n].copy()  # each run's own array, as one at a time
+        out.append(_refit(points, seen_from - _mean_rows(points)))
+        at += n
+    return out
 
 
 def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
@@ -172,17 +202,20 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
     axis = sensors[..., :2] + ranges[..., None] * np.stack(
         [np.cos(sensors[..., 2]), np.sin(sensors[..., 2])], axis=-1)
 
-    def candidate(j: int, run: np.ndarray) -> LinearFeature | None:
-        """The feature of a run, if it is long and straight enough (see :func:`_explains`)."""
-        if len(run) < min_points:
-            return None
-        pts = axis[run, j]
-        if np.hypot(*(pts[-1] - pts[0])) < min_length:
-            return None
-        feature = _feature_from(pts, sensors[run, j], ranges[run, j], half)
-        if feature.length >= min_length and feature.residual <= line_tol:
-            return feature
-        return None
+    def worth_fitting(runs: list[tuple[int, np.ndarray]]) -> list[bool]:
+        """Per run: enough echoes, the first and last far enough apart, for a feature (see
+        :func:`_explains`); all runs at once (``hypot`` element by element)."""
+        if not runs:
+            return []
+        sensor = np.array([j for j, _ in runs])
+        step = axis[[run[-1] for _, run in runs], sensor] \
+            - axis[[run[0] for _, run in runs], sensor]
+        return ((np.array([len(run) for _, run in runs]) >= min_points)
+                & ~(np.hypot(step[:, 0], step[:, 1]) < min_length)).tolist()
+
+    def straight(feature: LinearFeature) -> bool:
+        """A fitted run long and straight enough to be checked against its readings."""
+        return feature.length >= min_length and feature.residual <= line_tol
 
     def breaks_line(j: int, tail: np.ndarray, t: int) -> bool:
         # the recent part only: odometry drift bends long walls
@@ -218,18 +251,24 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
     def features_of(runs: list[tuple[int, np.ndarray]]) -> list[LinearFeature | None]:
         """Each run's feature, or None; the readings check of all runs at once."""
         out: list[LinearFeature | None] = [None] * len(runs)
-        checks = []
-        for i, (j, run) in enumerate(runs):
+        fits = []  # (index, axis points, sensors, ranges) of the runs to fit
+        for i, ((j, run), worth) in enumerate(zip(runs, worth_fitting(runs))):
             key = None if memo is None else (j, ids[run].tobytes())
             found = None if key is None else memo.get("run", key)
             if found is not None:
                 out[i] = found[0]
                 continue
-            feature = candidate(j, run)
-            if feature is not None:
-                checks.append((i, feature, sensors[run, j], ranges[run, j]))
+            if worth:
+                fits.append((i, axis[run, j], sensors[run, j], ranges[run, j]))
             elif key is not None:
                 memo.store("run", key, (None,))
+        checks = []
+        for (i, _, sens, rng), feature in zip(fits, _features_from([f[1:] for f in fits], half)):
+            if straight(feature):
+                checks.append((i, feature, sens, rng))
+            elif memo is not None:
+                j, run = runs[i]
+                memo.store("run", (j, ids[run].tobytes()), (None,))
         if checks:
             fine = _explained(checks, cone_deg, 2 * line_tol)
             for (i, feature, _, _), ok in zip(checks, fine):
@@ -259,18 +298,22 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
                 todo.append((len(slots), j, rows[a:b], key))
             slots.append(found)
     if todo:
-        flat = np.concatenate([axis[part, j] for _, j, part, _ in todo])
+        lengths = np.array([len(part) for _, _, part, _ in todo])
+        scan = np.concatenate([part for _, _, part, _ in todo])
+        sensor = np.repeat([j for _, j, _, _ in todo], lengths)
+        flat = axis[scan, sensor]
         if memo is None:
             status = _line_tests(flat, recent, line_tol)
         else:  # each echo named by its scan and sensor, unique in the segments
-            names = np.concatenate([ids[part] * sensors.shape[1] + j for _, j, part, _ in todo])
-            lengths = np.array([len(part) for _, _, part, _ in todo])
+            names = ids[scan] * sensors.shape[1] + sensor
             status = memo.line_tests(flat, _echo_windows(names, lengths, recent), line_tol)
+        straight_through = _no_line_breaks(status, lengths, recent).tolist()
         at = 0
         runs: list[tuple[int, np.ndarray]] = []
         owner: list[int] = []
         for n, (_, j, part, _) in enumerate(todo):
-            for run in segment(j, part, status[at:at + len(part)]):
+            for run in ([part] if straight_through[n] else
+                        segment(j, part, status[at:at + len(part)])):
                 runs.append((j, run))
                 owner.append(n)
             at += len(part)
@@ -368,6 +411,36 @@ def _line_test_rows(pts: np.ndarray, starts: np.ndarray, recent: int,
     status[:, :3] = _KEEPS
     status[(starts[None, :] + offsets >= n).T] = _KEEPS  # past the last echo
     return status
+
+
+def _no_line_breaks(status: np.ndarray, lengths: np.ndarray, recent: int) -> np.ndarray:
+    """Per segment (of ``lengths``, one after the other in ``status``): does no echo leave
+    the line of the run from its first echo, not even unsure (:func:`_line_tests`'
+    entries, as ``first_break`` reads them from the start)?  Then the segment is one run.
+
+    Why: most segments are one straight run; this settles them all at once, where
+    ``first_break`` looks at each in Python.
+
+    Examples
+    --------
+    >>> status = np.zeros((7, 5), dtype=np.int8)
+    >>> status[5, 4] = _UNSURE  # echo 5 + 4 is past its segment (5..6): not read
+    >>> _no_line_breaks(status, np.array([4, 3]), 4).tolist()
+    [True, True]
+    >>> status[0, 3] = _BREAKS  # echo 3 leaves the line through echoes 0..2
+    >>> _no_line_breaks(status, np.array([4, 3]), 4).tolist()
+    [False, True]
+    """
+    first = np.cumsum(lengths) - lengths
+    end = np.repeat(first + lengths, lengths)
+    rows = np.arange(len(status))
+    # from the segment's first echo, tails of 3..recent - 1 echoes inside the segment
+    head = (status[first, 3:recent] != 0) & (
+        first[:, None] + np.arange(3, recent)[None, :] < (first + lengths)[:, None])
+    # then every echo k, tested against the recent echoes before it: rows k - recent
+    tail = (status[:, recent] != 0) & (rows + recent < end)
+    broken = head.any(axis=1) | (np.add.reduceat(tail, first) > 0 if len(first) else False)
+    return ~broken
 
 
 def _echo_windows(names: np.ndarray, lengths: np.ndarray, recent: int) -> np.ndarray:
@@ -507,21 +580,24 @@ _CLEAR_OUT = 1e-9
 
 
 def _distances_in_cones(ox: np.ndarray, oy: np.ndarray, c: np.ndarray, s: np.ndarray,
-                        segments: np.ndarray, half_angle: float) -> np.ndarray:
+                        ends: np.ndarray, which: np.ndarray, half_angle: float) -> np.ndarray:
     """:func:`sim2d.sonar.nearest_in_cone`'s distance for pairs (all (P,)) of sensors at
-    (``ox``, ``oy``) heading (``c``, ``s``) = (cos, sin) and segments (P, 5) of radius 0,
-    working out only the pairs it might not find ``inf``.
+    (``ox``, ``oy``) heading (``c``, ``s``) = (cos, sin) and segments ``ends[which]``
+    (``ends`` (F, 4): x0, y0, x1, y1, of radius 0), working out only the pairs it might
+    not find ``inf``.
 
     Why: most pairs a box test leaves are segments behind the sensor or to one side of
     its cone.  A segment whose two ends lie behind the sensor (along its heading:
     ``x < -_CLEAR_OUT``), or both outside the same edge of its wedge, is ``inf`` there
     too: its nearest point in the wedge lies between the ends, behind; and the wedge
     clip leaves no part of it (``t0 > t1``).  The others are worked out by
-    ``nearest_in_cone`` itself, element by element, so the result is the same.
+    ``nearest_in_cone`` itself, element by element, so the result is the same.  The
+    end points are read a coordinate at a time, and the (P, 5) segments that
+    ``nearest_in_cone`` takes are built for the pairs kept only.
     """
     from sim2d.sonar import nearest_in_cone
-    ax, ay = segments[:, 0] - ox, segments[:, 1] - oy
-    bx, by = segments[:, 2] - ox, segments[:, 3] - oy
+    ax, ay = ends[:, 0][which] - ox, ends[:, 1][which] - oy
+    bx, by = ends[:, 2][which] - ox, ends[:, 3][which] - oy
     px, py = c * ax + s * ay, -s * ax + c * ay  # the ends in the sensor's frame
     qx, qy = c * bx + s * by, -s * bx + c * by
     sa, ca = math.sin(half_angle), math.cos(half_angle)
@@ -529,8 +605,10 @@ def _distances_in_cones(ox: np.ndarray, oy: np.ndarray, c: np.ndarray, s: np.nda
     for nx, ny in ((sa, -ca), (sa, ca)):  # inside the wedge: nx * x + ny * y >= 0
         out |= (nx * px + ny * py < -_CLEAR_OUT) & (nx * qx + ny * qy < -_CLEAR_OUT)
     keep = np.flatnonzero(~out)
+    segments = np.zeros((len(keep), 5))
+    segments[:, :4] = ends[which[keep]]
     dist = np.full(len(ox), np.inf)
-    dist[keep] = nearest_in_cone(ox[keep], oy[keep], c[keep], s[keep], segments[keep],
+    dist[keep] = nearest_in_cone(ox[keep], oy[keep], c[keep], s[keep], segments,
                                  half_angle)[0]
     return dist
 
@@ -636,57 +714,50 @@ def merge_features(features: list[LinearFeature], *, angle_tol_deg: float = 6.0,
     cos_tol = math.cos(angle_tol)
     if memo is not None:
         memo.configure("merge", (angle_tol_deg, offset_tol, max_gap))
-    known: dict[int, tuple] = {}  # per feature met (kept alive here): its numbers as floats
 
     def numbers(f: LinearFeature) -> tuple:
-        entry = known.get(id(f))
-        if entry is None:
-            serial, length = memo.serial(f) if memo is not None else (-1, f.length)
-            entry = known[id(f)] = (*f.normal.tolist(), *f.p0.tolist(), *f.p1.tolist(),
-                                    length, serial, f)
-        return entry
+        """The feature's numbers as floats, carried with it through the passes: (nx, ny,
+        x0, y0, x1, y1, length, serial, the feature, support)."""
+        serial, length = memo.serial(f) if memo is not None else (-1, f.length)
+        return (*f.normal.tolist(), *f.p0.tolist(), *f.p1.tolist(), length, serial, f,
+                f.support)
 
-    def order(f: LinearFeature) -> tuple[int, float]:
-        return -f.support, -numbers(f)[6]
+    def order(e: tuple) -> tuple[int, float]:
+        return -e[9], -e[6]
 
-    def mergeable(g: LinearFeature, f: LinearFeature) -> bool:
-        sure = _mergeable_quick(numbers(g), numbers(f), cos_tol, offset_tol, max_gap)
-        return _mergeable(g, f, angle_tol, offset_tol, max_gap) if sure is None else sure
+    def mergeable(g: tuple, f: tuple) -> bool:
+        sure = _mergeable_quick(g, f, cos_tol, offset_tol, max_gap)
+        return _mergeable(g[8], f[8], angle_tol, offset_tol, max_gap) if sure is None else sure
 
-    def merged(g: LinearFeature, f: LinearFeature) -> LinearFeature:
+    def merged(g: tuple, f: tuple) -> tuple:
+        a, b = g[8], f[8]
         if memo is None:
-            return _refit(np.vstack([g.points, f.points]), g.normal)
-        return memo.lookup("merged", (numbers(g)[7], numbers(f)[7]),
-                           lambda: _refit(np.vstack([g.points, f.points]), g.normal))
+            return numbers(_refit(np.vstack([a.points, b.points]), a.normal))
+        return numbers(memo.lookup("merged", (g[7], f[7]),
+                                   lambda: _refit(np.vstack([a.points, b.points]), a.normal)))
 
-    pool = sorted(features, key=order)
+    pool = sorted((numbers(f) for f in features), key=order)
     merged_any = True
     while merged_any:
         merged_any = False
-        in_pool = {id(f) for f in pool}
-        out: list[LinearFeature] = []
+        out: list[tuple] = []
         facing: list[tuple[float, float]] = []  # each kept feature's normal
         for f in pool:
-            fx, fy = numbers(f)[:2]
+            fx, fy = f[0], f[1]
             for i, (gx, gy) in enumerate(facing):
                 # most pairs face different ways: _mergeable_quick's first test, inline
                 if gx * fx + gy * fy - cos_tol < -_QUICK_SLACK:
                     continue
-                g = out[i]
-                if mergeable(g, f):
-                    out[i] = merged(g, f)
-                    facing[i] = numbers(out[i])[:2]
+                if mergeable(out[i], f):
+                    g = out[i] = merged(out[i], f)
+                    facing[i] = g[0], g[1]
                     merged_any = True
-                    if id(g) not in in_pool:  # a merge made in this pass, merged again:
-                        del known[id(g)]  # let it go (a long wall's would add up to GBs)
                     break
             else:
                 out.append(f)
                 facing.append((fx, fy))
         pool = sorted(out, key=order)
-        kept = {id(f) for f in pool}
-        known = {key: entry for key, entry in known.items() if key in kept}
-    return pool
+    return [e[8] for e in pool]
 
 
 def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg: float,
@@ -697,9 +768,10 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
     ``sensors`` is (M, 3).  Uses the simulator's exact cone geometry
     (:func:`sim2d.sonar.cone_ranges`), so a prediction is what a sonar would
     read if the features were the only walls.  With a :class:`FeatureMemo`
-    and ``ids`` (M,) naming the sensor poses, each feature's ranges for poses
-    it was met with in the last call are looked up (same result: the
-    geometry is worked out element by element, the nearest taken exactly).
+    and ``ids`` (M,) naming the sensor poses (increasing), each feature's ranges
+    for poses it was met with in the last call are looked up (same result: the
+    geometry is worked out element by element, the nearest taken exactly; see
+    :func:`_kept_predictions`).
     """
     from sim2d.sonar import cone_ranges_near
 
@@ -711,43 +783,82 @@ def predict_ranges(sensors: np.ndarray, features: list[LinearFeature], cone_deg:
         if ids is None:
             raise ValueError("a memo needs the sensors' ids")
         ids = np.asarray(ids, dtype=np.int64)
+        if len(ids) != len(sensors) or (np.diff(ids) <= 0).any():
+            raise ValueError("the sensors' ids must be one each, increasing")
         memo.configure("predict", (float(cone_deg), float(max_range)))
-        reach = max_range + 1e-6  # farther than this from a segment's box: cannot see it
-        ends = np.array([[*f.p0, *f.p1] for f in features])  # (F, 4)
-        x0, x1 = np.minimum(ends[:, 0], ends[:, 2]), np.maximum(ends[:, 0], ends[:, 2])
-        y0, y1 = np.minimum(ends[:, 1], ends[:, 3]), np.maximum(ends[:, 1], ends[:, 3])
-        sx, sy = sensors[None, :, 0], sensors[None, :, 1]
-        todo = (sx >= (x0 - reach)[:, None]) & (sx <= (x1 + reach)[:, None]) \
-            & (sy >= (y0 - reach)[:, None]) & (sy <= (y1 + reach)[:, None])  # (F, M)
-        ranges = np.full(todo.shape, np.inf)
-        keys = []
-        matched: dict[int, tuple] = {}  # per id array of an earlier call: where ours are in it
-        for k, f in enumerate(features):
-            key = memo.serial(f)[0]
-            keys.append(key)
-            known = memo.get("predict", key)
-            if known is not None:
-                known_ids, known_ranges = known
-                match = matched.get(id(known_ids))
-                if match is None:  # the features kept by one call share its id array
-                    at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
-                    hit = known_ids[at] == ids
-                    match = matched[id(known_ids)] = (known_ids, hit, at[hit])
-                _, hit, at = match
-                todo[k] &= ~hit
-                ranges[k, hit] = known_ranges[at]
-        # the new pairs of all features at once, element by element (feature by feature,
-        # as np.nonzero goes)
-        which, i = np.nonzero(todo)
-        segments = np.column_stack([ends, np.zeros(len(features))])[which]
-        # each sensor's heading once (cos and sin are worked out element by element)
-        c, s = np.cos(sensors[:, 2]), np.sin(sensors[:, 2])
-        dist = _distances_in_cones(sensors[i, 0], sensors[i, 1], c[i], s[i], segments, half)
-        ranges[which, i] = np.where(dist <= max_range, np.maximum(dist, 0.0), np.inf)
-        out = np.full(len(sensors), np.inf)
-        for key, row in zip(keys, ranges):
-            memo.store("predict", key, (ids, row))
-            np.minimum(out, row, out=out)
-        return out
+        return _kept_predictions(sensors, features, half, max_range, ids, memo)
     segments = np.array([[*f.p0, *f.p1, 0.0] for f in features])
     return cone_ranges_near(sensors, segments, half, max_range, chunk)
+
+
+def _box_pairs(ends: np.ndarray, features: np.ndarray, sx: np.ndarray, sy: np.ndarray,
+               sensors: np.ndarray | None, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs (feature, sensor) of ``features`` (indices into ``ends`` (F, 4)) and
+    ``sensors`` (indices into ``sx``, ``sy``; None: all) with the sensor within ``reach``
+    of the segment's bounding box: those that may see it.  Feature by feature, as
+    ``np.nonzero`` goes."""
+    x = sx if sensors is None else sx[sensors]
+    y = sy if sensors is None else sy[sensors]
+    e = ends[features]
+    x0, x1 = np.minimum(e[:, 0], e[:, 2]), np.maximum(e[:, 0], e[:, 2])
+    y0, y1 = np.minimum(e[:, 1], e[:, 3]), np.maximum(e[:, 1], e[:, 3])
+    near = (x[None, :] >= (x0 - reach)[:, None]) & (x[None, :] <= (x1 + reach)[:, None]) \
+        & (y[None, :] >= (y0 - reach)[:, None]) & (y[None, :] <= (y1 + reach)[:, None])
+    k, i = np.nonzero(near)
+    return features[k], (i if sensors is None else sensors[i])
+
+
+def _kept_predictions(sensors: np.ndarray, features: list[LinearFeature], half: float,
+                      max_range: float, ids: np.ndarray, memo: FeatureMemo) -> np.ndarray:
+    """:func:`predict_ranges` with a memo: each feature's finite ranges at the sensors
+    ``ids`` (increasing) of the last call that met it are looked up, and only the pairs of
+    it and the sensors not in that call are worked out.
+
+    Why: a feature's ranges are kept as the ids and ranges of the sensors that see it
+    (a few hundred), not a row over every sensor of the call (thousands, most ``inf``);
+    the sensors of a kept call are box-tested once per call, not per feature.  The
+    nearest range is a minimum, exact in any order, of the same element-by-element
+    distances, so the result is that of the call without a memo.
+    """
+    reach = max_range + 1e-6  # farther than this from a segment's box: cannot see it
+    ends = np.array([[*f.p0, *f.p1] for f in features])  # (F, 4)
+    out = np.full(len(sensors), np.inf)
+    groups: dict[int, tuple[np.ndarray | None, list[int]]] = {-1: (None, [])}
+    kept: list[tuple[np.ndarray, np.ndarray]] = []  # per feature: its known finite ranges
+    keys = []
+    for k, f in enumerate(features):
+        key = memo.serial(f)[0]
+        keys.append(key)
+        known = memo.get("predict", key)
+        if known is None:
+            groups[-1][1].append(k)
+            kept.append((ids[:0], out[:0]))
+            continue
+        known_ids, seen_ids, seen = known
+        if id(known_ids) not in groups:  # the features kept by one call share its ids
+            at = np.minimum(np.searchsorted(known_ids, ids), len(known_ids) - 1)
+            groups[id(known_ids)] = (np.flatnonzero(known_ids[at] != ids), [])
+        groups[id(known_ids)][1].append(k)
+        at = np.minimum(np.searchsorted(ids, seen_ids), len(ids) - 1)
+        here = ids[at] == seen_ids  # those of the last call's sensors still here
+        at = at[here]
+        out[at] = np.minimum(out[at], seen[here])  # one sensor each
+        kept.append((seen_ids[here], seen[here]))
+    pairs = [_box_pairs(ends, np.array(members, dtype=np.int64), sensors[:, 0], sensors[:, 1],
+                        cand, reach) for cand, members in groups.values() if members]
+    which = np.concatenate([p[0] for p in pairs])
+    i = np.concatenate([p[1] for p in pairs])
+    # each sensor's heading once (cos and sin are worked out element by element)
+    c, s = np.cos(sensors[:, 2]), np.sin(sensors[:, 2])
+    dist = _distances_in_cones(sensors[i, 0], sensors[i, 1], c[i], s[i], ends, which, half)
+    seen = np.flatnonzero(dist <= max_range)
+    which, i, found = which[seen], i[seen], np.maximum(dist[seen], 0.0)
+    np.minimum.at(out, i, found)
+    order = np.argsort(which, kind="stable")
+    bounds = np.concatenate([[0], np.cumsum(np.bincount(which, minlength=len(features)))])
+    found_ids, found = ids[i[order]], found[order]
+    for k, key in enumerate(keys):
+        a, b = bounds[k], bounds[k + 1]
+        memo.store("predict", key, (ids, np.concatenate([kept[k][0], found_ids[a:b]]),
+                                    np.concatenate([kept[k][1], found[a:b]])))
+    return out

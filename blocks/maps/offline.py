@@ -208,8 +208,7 @@ def _draw_features(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, in
     import cv2
 
     order = sorted(features, key=lambda f: f.support)  # where lines cross, the stronger wins
-    ends = [(np.round(f.p0 / p.resolution - np.array(corner) - 0.5).astype(int),
-             np.round(f.p1 / p.resolution - np.array(corner) - 0.5).astype(int)) for f in order]
+    ends = list(zip(*_end_cells(order, corner, p.resolution)))
     rows, cols = _feature_window(ends, log_odds.shape)
     evidence = np.zeros((rows.stop - rows.start, cols.stop - cols.start), dtype=np.float32)
     for f, (a, b) in zip(order, ends):
@@ -219,6 +218,18 @@ def _draw_features(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, in
                  cv2.LINE_8)
     log_odds[rows, cols] += evidence
     seen[rows, cols] |= evidence > 0
+
+
+def _end_cells(features: list[LinearFeature], corner: tuple[int, int], resolution: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(F, 2) the cells (x, y) of the features' end points ``p0`` and of their ``p1``, on the
+    grid at ``corner``: ``round(p / resolution - corner - 0.5)``, element by element for
+    all features at once (the same numbers as feature by feature)."""
+    if not features:
+        return np.zeros((0, 2), dtype=int), np.zeros((0, 2), dtype=int)
+    shift = np.array(corner)
+    return tuple(np.round(np.array([getattr(f, end) for f in features]) / resolution
+                          - shift - 0.5).astype(int) for end in ("p0", "p1"))
 
 
 def _feature_window(ends: list[tuple[np.ndarray, np.ndarray]], shape: tuple[int, int]

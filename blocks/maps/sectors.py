@@ -34,8 +34,8 @@ import numpy as np
 
 from .cones import ConeSpans
 
-__all__ = ["BeamSums", "Beams", "add_runs", "beam_rings", "beam_terms", "exact_weights",
-           "run_ends", "sum_beams"]
+__all__ = ["BeamSums", "Beams", "add_runs", "beam_rings", "beam_terms", "block_sums",
+           "exact_weights", "fraction_bits", "run_ends", "sum_beams"]
 
 
 @dataclass(frozen=True)
@@ -178,26 +178,32 @@ def run_ends(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: in
     cone on the rows it reaches), which changes no sum; else every row within
     the disk's reach is drawn, as the sums' rounding then depends on it.
     """
-    pieces = list(_run_pieces(spans, beams, corner, stride, exact, None))
-    return np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces])
+    parts = [part for piece in _run_pieces(spans, beams, corner, stride, exact, None)
+             for part in piece]
+    return (np.concatenate([index for index, _, _ in parts]),
+            np.concatenate([np.negative(value) if taken else value for _, value, taken in parts]))
 
 
 def add_runs(flat: np.ndarray, spans: ConeSpans, beams: Beams, corner: tuple[int, int],
              stride: int, *, check: bool = False) -> None:
     """Add the entries of :func:`run_ends` (``exact``) to the difference grid ``flat``
     (raveled), :data:`RUN_PIECE` runs at a time; with ``check``, first make sure that
-    each lands inside it."""
-    for index, value in _run_pieces(spans, beams, corner, stride, True, RUN_PIECE):
-        if check and index.size and (index.min() < 0 or index.max() >= flat.size):
+    each lands inside it.  The run starts and ends are added and taken away part by
+    part, without joining them or negating values first (the sums are exact)."""
+    for piece in _run_pieces(spans, beams, corner, stride, True, RUN_PIECE):
+        if check and any(index.size and (index.min() < 0 or index.max() >= flat.size)
+                         for index, _, _ in piece):
             raise ValueError("a reading's cone reaches outside the grid")
-        np.add.at(flat, index, value)
+        for index, value, taken in piece:
+            (np.subtract if taken else np.add).at(flat, index, value)
 
 
 def _run_pieces(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride: int,
                 exact: bool, budget: int | None
-                ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+                ) -> Iterator[list[tuple[np.ndarray, np.ndarray, bool]]]:
     """:func:`run_ends` in pieces of about ``budget`` runs (None: one piece, run starts
-    then run ends, in the order of :func:`beam_terms`)."""
+    then run ends, in the order of :func:`beam_terms`), each piece as parts (flat
+    indices, log-odds, whether they are taken away instead of added)."""
     if exact:  # the rings of beam_rings on the rows where their two cuts differ
         beam, outer, inner, value = beam_rings(beams, spans.limit)
         order = np.argsort(inner > 0, kind="stable")  # whole cones first, then the rings
@@ -217,15 +223,14 @@ def _run_pieces(spans: ConeSpans, beams: Beams, corner: tuple[int, int], stride:
         runs = _RunTables(spans, beams, beam[part], corner, stride, e0[part], n[part])
         a, b = runs.cut(outer[part])
         v = np.repeat(value[part], n[part])
-        index, values = [a, b], [v, -v]
+        parts = [(a, v, False), (b, v, True)]
         rings = inner[part] > 0
         cones = int(np.searchsorted(rings, True))  # the rings come last
         if cones < len(rings):  # and their inner cuts (a whole cone's S(0) is empty)
             a_in, b_in = runs.cut(inner[part][cones:], cones)
             ring_v = v[int(n[part][:cones].sum()):]
-            index += [a_in, b_in]
-            values += [-ring_v, ring_v]
-        yield np.concatenate(index), np.concatenate(values)
+            parts += [(a_in, ring_v, True), (b_in, ring_v, False)]
+        yield parts
 
 
 def _pieces(n: np.ndarray, budget: int | None) -> Iterator[slice]:
@@ -288,7 +293,7 @@ def sum_beams(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
     The sums are exact for :func:`exact_weights` log-odds, else within float64 rounding.
     """
     exact = exact_weights(np.concatenate([beams.free_value, beams.occ_value]), 2 * len(beams))
-    return _integrate(_difference_grid(spans, beams, corner, shape, exact), shape[1])
+    return _integrate(_difference_grid(spans, beams, corner, shape, exact), shape[1], exact)
 
 
 def _difference_grid(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
@@ -304,8 +309,49 @@ def _difference_grid(spans: ConeSpans, beams: Beams, corner: tuple[int, int],
     return np.bincount(index, value, minlength=h * (w + 1)).reshape(h, w + 1)
 
 
-def _integrate(diff: np.ndarray, width: int) -> np.ndarray:
+def _integrate(diff: np.ndarray, width: int, exact: bool = False) -> np.ndarray:
+    """The first ``width`` columns of the running sums along the rows of ``diff``: in the
+    order of ``np.cumsum``, or with ``exact`` (sums exact in any order) in blocks
+    (:func:`block_sums`, the same numbers)."""
+    if exact:
+        return block_sums(diff, width)
     return np.cumsum(diff, axis=1)[:, :width]
+
+
+#: Columns summed a block at a time by :func:`block_sums`.
+SUM_BLOCK = 32
+
+
+def block_sums(diff: np.ndarray, width: int, block: int | None = None) -> np.ndarray:
+    """``np.cumsum(diff, axis=1)[:, :width]`` for sums that are exact in any order.
+
+    Why: numpy's running sum goes element after element (each waits for the last),
+    about 3 ns a cell.  Here the rows are cut into blocks of ``block`` columns: the
+    running sums within every block at once, a column of blocks at a time (whole
+    strided columns added, ``block - 1`` of them), then each block's start, the
+    running sum of the blocks' totals (a ``block``-th of the cells).  Every partial
+    sum here is the difference of two running sums of a row, multiples of ``2**-e``
+    below ``2**(52 - e)`` (:func:`exact_weights`), so it is one below ``2**(53 - e)``,
+    which float64 holds exactly: nothing rounds, and the result is the same to the
+    bit.  It is a view of a (rows, whole blocks) array.
+
+    Examples
+    --------
+    >>> diff = np.array([[1.0, 0.5, 0.0, -1.5, 0.0], [0.0, 2.0, 0.0, 0.0, -2.0]])
+    >>> block_sums(diff, 4, block=2).tolist()
+    [[1.0, 1.5, 1.5, 0.0], [0.0, 2.0, 2.0, 2.0]]
+    """
+    block = SUM_BLOCK if block is None else block
+    h = diff.shape[0]
+    count = -(-width // block)  # blocks that hold the first width columns
+    out = np.zeros((h, count * block))
+    out[:, :width] = diff[:, :width]
+    blocks = out.reshape(h, count, block)
+    for k in range(1, block):
+        blocks[:, :, k] += blocks[:, :, k - 1]
+    if count > 1:
+        blocks[:, 1:, :] += np.cumsum(blocks[:, :-1, block - 1], axis=1)[:, :, None]
+    return out[:, :width]
 
 
 def exact_weights(values: np.ndarray, readings: int) -> bool:
@@ -327,13 +373,33 @@ def exact_weights(values: np.ndarray, readings: int) -> bool:
         return True
     if not np.isfinite(values).all():
         return False
-    values = np.unique(values)
-    e = 0
-    while e <= 60 and not (np.ldexp(values, e) == np.round(np.ldexp(values, e))).all():
-        e += 1
+    e = fraction_bits(values)
     if e > 60:
         return False
     return readings * float(np.abs(values).max()) < 2.0 ** (52 - e)
+
+
+def fraction_bits(values: np.ndarray) -> int:
+    """The least ``e >= 0`` with every value (finite, non-zero float64) a whole multiple of
+    ``2**-e``: read off each value's bits (its odd mantissa's exponent), where trying
+    ``e = 0, 1, ...`` on the distinct values would sort them first.
+
+    Examples
+    --------
+    >>> fraction_bits(np.array([3.0, 0.75, -0.125]))  # 0.125 = 2**-3
+    3
+    >>> fraction_bits(np.array([6.0, 1e300]))
+    0
+    """
+    bits = np.abs(np.asarray(values, dtype=np.float64)).view(np.int64)
+    biased = bits >> 52
+    # the mantissa with its leading bit (none below the normal numbers, where the bits
+    # below are not all 0, so setting it leaves the lowest set bit as it is)
+    mantissa = (bits & ((1 << 52) - 1)) | (1 << 52)
+    lowest = mantissa & -mantissa  # its lowest set bit, a power of two up to 2**52
+    odd_exponent = np.frexp(lowest.astype(np.float64))[1] - 1 \
+        + np.maximum(biased, 1) - 1075  # value = odd * 2**odd_exponent
+    return int(max(0, -int(odd_exponent.min())))
 
 
 def _joined(gone: Beams, new: Beams) -> Beams:
@@ -396,17 +462,23 @@ class BeamSums:
         if exact:
             self._states.insert(0, _State(keys, table, beams, corner, diff))
             del self._states[self.keep:]
-        return _integrate(diff, shape[1])
+        return _integrate(diff, shape[1], exact)
 
     def _best_start(self, keys: np.ndarray, table: np.ndarray):
         """The kept call that needs the fewest readings changed, and what to change."""
         best, best_cost, best_plan = None, len(keys), None
         for state in self._states:
-            at = np.minimum(np.searchsorted(state.keys, keys), len(state.keys) - 1)
-            i_new = np.flatnonzero(state.keys[at] == keys)  # keys sorted and unique in both
+            # only the new keys within the kept ones' range can be shared (both sorted)
+            lo = int(np.searchsorted(keys, state.keys[0]))
+            hi = int(np.searchsorted(keys, state.keys[-1], side="right"))
+            if len(state.keys) + len(keys) - 2 * (hi - lo) >= best_cost:
+                continue  # even if all of them were shared and the same, no cheaper
+            at = np.minimum(np.searchsorted(state.keys, keys[lo:hi]), len(state.keys) - 1)
+            i_new = np.flatnonzero(state.keys[at] == keys[lo:hi])  # unique in both
             if len(state.keys) + len(keys) - 2 * len(i_new) >= best_cost:
                 continue  # even if every shared reading were the same, no cheaper
             i_old = at[i_new]
+            i_new += lo
             same = (state.table[i_old] == table[i_new]).all(axis=1)
             kept_old = np.zeros(len(state.keys), dtype=bool)
             kept_old[i_old[same]] = True
