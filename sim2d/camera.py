@@ -275,30 +275,28 @@ def project_points(points: np.ndarray, cam_pose, tilt: float, zoom: float,
         Forward distance along the optical axis (m); negative behind the camera.
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    px, py, yaw = cam_pose
-    f, cx, cy = _intrinsics(spec, tilt, zoom)
-    dx, dy = p[:, 0] - px, p[:, 1] - py
-    c, s = math.cos(yaw), math.sin(yaw)
-    xc = c * dx + s * dy
-    yc = -s * dx + c * dy
-    zc = p[:, 2] - spec.mount_z
-    safe = np.where(np.abs(xc) > 1e-12, xc, 1e-12)
-    return cx - f * yc / safe, cy - f * zc / safe, xc
+    return _projected(p, cam_pose, *_intrinsics(spec, tilt, zoom), spec.mount_z)
 
 
 def _project(points: np.ndarray, shot: _Shot, mount_z: float
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`project_points` for a shot: the intrinsics its lens already holds (the same
     numbers, without working them out again)."""
-    px, py, yaw = shot.pose
     lens = shot.lens
-    dx, dy = points[:, 0] - px, points[:, 1] - py
+    return _projected(points, shot.pose, lens.f, lens.cx, lens.cy, mount_z)
+
+
+def _projected(p: np.ndarray, cam_pose, f: float, cx: float, cy: float, mount_z: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pinhole projection of points ``p`` (N, 3) with these intrinsics: u, v, depth."""
+    px, py, yaw = cam_pose
+    dx, dy = p[:, 0] - px, p[:, 1] - py
     c, s = math.cos(yaw), math.sin(yaw)
     xc = c * dx + s * dy
     yc = -s * dx + c * dy
-    zc = points[:, 2] - mount_z
+    zc = p[:, 2] - mount_z
     safe = np.where(np.abs(xc) > 1e-12, xc, 1e-12)
-    return lens.cx - lens.f * yc / safe, lens.cy - lens.f * zc / safe, xc
+    return cx - f * yc / safe, cy - f * zc / safe, xc
 
 
 def _forward_depth(x: float, y: float, pose: tuple[float, float, float]) -> float:
@@ -835,18 +833,16 @@ def _plate_views(shot: _Shot, plates: _Plates, walls: Walls, spec: CameraSpec,
 
 
 def _plate_view(i: int, sign: Sign, corners3: np.ndarray, shot: _Shot, walls: Walls,
-                spec: CameraSpec, normal: np.ndarray | None = None) -> _PlateView | None:
+                spec: CameraSpec, normal: np.ndarray) -> _PlateView | None:
     """Sign ``i``'s plate as the camera sees it (corners ``corners3`` from
-    :func:`plate_corners`, ``normal`` the (cos, sin) of its facing, if at hand);
-    None when none of it shows."""
+    :func:`plate_corners`, ``normal`` the (cos, sin) of its facing); None when none
+    of it shows."""
     px, py, yaw = shot.pose
     width, height = spec.width, spec.height
     to_cam = np.array([px - sign.x, py - sign.y])
     distance = float(np.hypot(to_cam[0], to_cam[1]))
     if distance <= 1e-9 or distance > spec.max_range:
         return None
-    if normal is None:
-        normal = np.array([math.cos(sign.facing), math.sin(sign.facing)])
     cos_view = float(normal @ to_cam) / distance
     if cos_view <= 0:
         return None  # seen from behind or edge-on
