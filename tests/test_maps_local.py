@@ -714,7 +714,7 @@ def test_features_of_many_runs_at_once_are_those_run_by_run(corridor):
         runs.append((axis[run, j], sensors[run, j], ranges[run, j]))
     half = math.radians(15)
     want = []
-    for points, sens, r in runs:  # _feature_from as it was written, one run at a time
+    for points, sens, r in runs:  # a feature fitted run by run, as it was written
         centre, direction = _fit_line(points)
         normal = np.array([-direction[1], direction[0]])
         seen_from = _mean_rows(sens[:, :2])

@@ -168,7 +168,8 @@ class ConeSpans:
 @dataclass(frozen=True)
 class SmallRuns:
     """The per-run tables of :class:`ConeSpans` in int32 (offsets of a few hundred cells),
-    for the inner loop of :func:`blocks.maps.sectors.run_ends`."""
+    for the run tables of :func:`blocks.maps.sectors.run_ends` and
+    :func:`~blocks.maps.sectors.add_runs`."""
 
     row: np.ndarray
     start: np.ndarray

@@ -117,16 +117,10 @@ def _wall_points(sensors: np.ndarray, ranges: np.ndarray, toward: float | np.nda
     return sensors[:, :2] + ranges[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
 
 
-def _feature_from(points: np.ndarray, sensors: np.ndarray, ranges: np.ndarray,
-                  half_cone: float) -> LinearFeature:
-    """Fit a feature to one run of echoes (axis points give the direction, then the
-    reflection points give the line's offset and extent)."""
-    return _features_from([(points, sensors, ranges)], half_cone)[0]
-
-
 def _features_from(runs: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
                    half_cone: float) -> list[LinearFeature]:
-    """:func:`_feature_from` of many runs (axis points, sensors, ranges): the reflection
+    """A feature fitted to each run (axis points, sensors, ranges): the axis points give
+    the direction, the reflection points the offset and extent; the reflection
     points of all their echoes worked out at once (element by element, as run by run);
     the line fits run by run, as their sums go through BLAS dot products whose order
     depends on the arrays."""
@@ -252,8 +246,8 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
         """Each run's feature, or None; the readings check of all runs at once."""
         out: list[LinearFeature | None] = [None] * len(runs)
         fits = []  # (index, axis points, sensors, ranges) of the runs to fit
-        for i, ((j, run), worth) in enumerate(zip(runs, worth_fitting(runs))):
-            key = None if memo is None else (j, ids[run].tobytes())
+        keys = [None if memo is None else (j, ids[run].tobytes()) for j, run in runs]
+        for i, ((j, run), worth, key) in enumerate(zip(runs, worth_fitting(runs), keys)):
             found = None if key is None else memo.get("run", key)
             if found is not None:
                 out[i] = found[0]
@@ -267,15 +261,13 @@ def extract_linear_features(sensors: np.ndarray, ranges: np.ndarray, echo: np.nd
             if straight(feature):
                 checks.append((i, feature, sens, rng))
             elif memo is not None:
-                j, run = runs[i]
-                memo.store("run", (j, ids[run].tobytes()), (None,))
+                memo.store("run", keys[i], (None,))
         if checks:
             fine = _explained(checks, cone_deg, 2 * line_tol)
             for (i, feature, _, _), ok in zip(checks, fine):
                 out[i] = feature if ok else None
                 if memo is not None:
-                    j, run = runs[i]
-                    memo.store("run", (j, ids[run].tobytes()), (out[i],))
+                    memo.store("run", keys[i], (out[i],))
         return out
 
     # The segments (echoes no farther apart than max_gap) of every sensor, in order; those
@@ -366,7 +358,7 @@ def _line_test_rows(pts: np.ndarray, starts: np.ndarray, recent: int,
     """:func:`_line_tests` for the ``starts``.
 
     Worked out with the tail lengths along the first axis, so that the running
-    sums add whole rows (a few thousand starts each) instead of running along
+    sums add whole rows (up to :data:`LINE_TEST_ROWS` starts each) instead of running along
     a row of ``recent``; and the line's direction from the scatter with square
     roots (no ``arctan2``, ``cos``, ``sin`` nor ``hypot``, the costs of the
     test): it rounds by a few units in the last place, far inside the bound.

@@ -208,10 +208,10 @@ def _draw_features(log_odds: np.ndarray, seen: np.ndarray, corner: tuple[int, in
     import cv2
 
     order = sorted(features, key=lambda f: f.support)  # where lines cross, the stronger wins
-    ends = list(zip(*_end_cells(order, corner, p.resolution)))
-    rows, cols = _feature_window(ends, log_odds.shape)
+    first, last = _end_cells(order, corner, p.resolution)
+    rows, cols = _feature_window(np.concatenate([first, last]), log_odds.shape)
     evidence = np.zeros((rows.stop - rows.start, cols.stop - cols.start), dtype=np.float32)
-    for f, (a, b) in zip(order, ends):
+    for f, a, b in zip(order, first, last):
         strength = p.feature_logodds * min(1.0, f.support / p.full_support)
         cv2.line(evidence, (int(a[0]) - cols.start, int(a[1]) - rows.start),
                  (int(b[0]) - cols.start, int(b[1]) - rows.start), float(strength), 1,
@@ -232,16 +232,14 @@ def _end_cells(features: list[LinearFeature], corner: tuple[int, int], resolutio
                           - shift - 0.5).astype(int) for end in ("p0", "p1"))
 
 
-def _feature_window(ends: list[tuple[np.ndarray, np.ndarray]], shape: tuple[int, int]
-                    ) -> tuple[slice, slice]:
-    """The rows and columns of the grid that hold every line's end cells (x, y), or the
+def _feature_window(cells: np.ndarray, shape: tuple[int, int]) -> tuple[slice, slice]:
+    """The rows and columns of the grid that hold every line's end ``cells`` ((n, 2) x, y), or the
     whole grid if one lies outside it.  Why: the lines are drawn on that window only (a
     line within its image is drawn the same wherever the image starts), not on a grid-sized
     one added everywhere."""
     whole = (slice(0, shape[0]), slice(0, shape[1]))
-    if not ends:
+    if not len(cells):
         return slice(0, 0), slice(0, 0)
-    cells = np.array([end for pair in ends for end in pair])  # (2 F, 2) x, y
     x0, y0 = cells.min(axis=0)
     x1, y1 = cells.max(axis=0) + 1
     if x0 < 0 or y0 < 0 or x1 > shape[1] or y1 > shape[0]:

@@ -404,8 +404,8 @@ def fraction_bits(values: np.ndarray) -> int:
 
 def _joined(gone: Beams, new: Beams) -> Beams:
     """``gone`` with negated log-odds, then ``new``: their run ends are those of the two
-    apart, the first negated (``beam_terms`` keeps a term by its value being non-zero,
-    which negation keeps), in the same order."""
+    apart, the first negated (``beam_terms`` and ``beam_rings`` keep a term by its value
+    being non-zero, which negation keeps)."""
     fields = Beams.__dataclass_fields__
     parts = {name: np.concatenate([getattr(gone, name), getattr(new, name)]) for name in fields}
     for name in ("free_value", "occ_value"):
@@ -507,7 +507,8 @@ class BeamSums:
             diff = np.zeros((union[0], stride))
             br, bc = base.corner[0] - r0, base.corner[1] - c0
             diff[br:br + bh, bc:bc + bw + 1] = base.diff
-        # the readings gone, with their log-odds negated, then the new ones: one pass
+        # the readings gone, with their log-odds negated, then the new ones (exact sums:
+        # in any order, a piece at a time)
         add_runs(diff.reshape(-1), self.spans, _joined(base.beams.take(gone), beams.take(new)),
                  (r0, c0), stride)  # only exact sums are kept
         self.readings_drawn += len(gone) + len(new)
