@@ -304,6 +304,11 @@ class Camera(_RobotBlock):
               "rate_hz": Param(float, 0.0, "frames per second; 0 uses the robot's camera rate",
                                min=0.0)}
 
+    def setup(self) -> None:
+        from .noise import NoiseAhead
+        # the frames' noise, drawn a frame ahead on a thread; it outlives reset, like self.rng
+        self._noise = NoiseAhead(self.rng)
+
     def reset(self) -> None:
         self._spec = None
         self._renderer = None  # CameraRenderer of the world being drawn
@@ -334,7 +339,7 @@ class Camera(_RobotBlock):
         cam = camera_pose(robot.pose, self._spec, self._head[0])
         if self._renderer is None or self._renderer.world is not sim.world:
             self._renderer = CameraRenderer(sim.world, self._spec)
-        frame = self._renderer.frame(cam, self._head[1], self._head[2], self.rng)
+        frame = self._renderer.frame(cam, self._head[1], self._head[2], self._noise)
         return {**head, "image": frame.image, "pose": np.asarray(cam, dtype=np.float64),
                 "fresh": True, "visible": frame.signs, "objects_visible": frame.objects}
 

@@ -51,6 +51,7 @@ import numpy as np
 
 from blocks.core.errors import SemmapError
 
+from .noise import NoiseAhead, gaussian_noise
 from .world import Sign, World
 
 __all__ = [
@@ -1358,14 +1359,20 @@ class CameraRenderer:
         self._backdrop: _Backdrop | None = None  # of that lens
         self._canvas: _Canvas | None = None  # at the first image
 
-    def frame(self, cam_pose, tilt: float, zoom: float, rng: np.random.Generator) -> CameraFrame:
-        """The image and the signs and objects in view, from one ray cast (see :func:`render`)."""
+    def frame(self, cam_pose, tilt: float, zoom: float,
+              rng: np.random.Generator | NoiseAhead) -> CameraFrame:
+        """The image and the signs and objects in view, from one ray cast (see :func:`render`).
+
+        ``rng`` may be a :class:`sim2d.noise.NoiseAhead` over the generator: the
+        same image, with its noise drawn ahead on a thread.
+        """
         shot = self._shot(cam_pose, tilt, zoom)
         plates, objects = self._views(shot)
         image = self._image(shot, plates, objects, rng)
         return CameraFrame(image, _sign_reports(plates), _object_reports(objects))
 
-    def render(self, cam_pose, tilt: float, zoom: float, rng: np.random.Generator) -> np.ndarray:
+    def render(self, cam_pose, tilt: float, zoom: float,
+               rng: np.random.Generator | NoiseAhead) -> np.ndarray:
         """The image alone: :func:`render`."""
         shot = self._shot(cam_pose, tilt, zoom)
         return self._image(shot, *self._views(shot), rng)
@@ -1417,7 +1424,7 @@ class CameraRenderer:
         return _object_views(shot, self._loaded_objects(), self.spec)
 
     def _image(self, shot: _Shot, plates: list[_PlateView], objects: list[_ObjectView],
-               rng: np.random.Generator) -> np.ndarray:
+               rng: np.random.Generator | NoiseAhead) -> np.ndarray:
         spec, f32 = self.spec, np.float32
         if self._canvas is None:
             self._canvas = _Canvas(spec.height, spec.width)
@@ -1436,8 +1443,11 @@ class CameraRenderer:
         sigma /= f32(shot.zoom)
         img = _depth_blur(img, sigma, canvas)
         if spec.noise_std > 0:
-            spare = canvas.spare[0] if img is canvas.spare[1] else canvas.spare[1]
-            noise = _gaussian_noise(img.shape, spec.noise_std, rng, out=spare)
+            if isinstance(rng, NoiseAhead):
+                noise = rng.field(img.shape, spec.noise_std)
+            else:
+                spare = canvas.spare[0] if img is canvas.spare[1] else canvas.spare[1]
+                noise = gaussian_noise(img.shape, spec.noise_std, rng, out=spare)
             # the float32 sum, rounded half to even and saturated, as np.rint and np.clip do
             return cv2.add(img, noise, dtype=cv2.CV_8U)
         return np.clip(np.rint(img, out=img), 0, 255, out=img).astype(np.uint8)
@@ -1621,23 +1631,6 @@ def _palette(colours: Mapping[str, Any] | None) -> np.ndarray:
         if key in colours:
             palette[row] = _bgr(colours[key])
     return palette
-
-
-def _gaussian_noise(shape: tuple[int, ...], std: float, rng: np.random.Generator,
-                    out: np.ndarray | None = None) -> np.ndarray:
-    """Gaussian noise, float32, drawn by OpenCV's (thread-local) RNG seeded from ``rng``
-    (into ``out``, a C-contiguous float32 array of that shape, if given).
-
-    Three times faster than numpy's normal sampler; one 31-bit draw from
-    ``rng`` fixes the whole noise field, so the result is a deterministic
-    function of ``rng``'s state. The field is drawn as one channel: OpenCV
-    draws the same values in memory order for any number of channels with
-    the same mean and deviation, and scales one channel twice as fast.
-    """
-    noise = np.empty(shape, dtype=np.float32) if out is None else out
-    cv2.setRNGSeed(int(rng.integers(1, 2**31 - 1)))
-    cv2.randn(noise.reshape(len(noise), -1), 0.0, float(std))
-    return noise
 
 
 def _draw_plate(img: np.ndarray, depth: np.ndarray, view: _PlateView, spec: CameraSpec) -> None:

@@ -1,0 +1,54 @@
+"""The camera noise drawn ahead on a thread is the noise drawn in turn, field for field."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from sim2d.camera import CameraRenderer, CameraSpec
+from sim2d.noise import NoiseAhead, gaussian_noise
+from sim2d.world import make_world
+
+
+def test_fields_drawn_ahead_are_the_fields_drawn_in_turn():
+    """Same seeds, same order, through changes of shape and deviation (a changed field is
+    drawn again from the seed drawn ahead, so the sequence never shifts)."""
+    calls = [((24, 32, 3), 3.0)] * 3 + [((12, 16, 3), 3.0), ((12, 16, 3), 1.5),
+                                         ((12, 16, 3), 1.5), ((24, 32, 3), 3.0)]
+    plain, ahead = np.random.default_rng(7), NoiseAhead(np.random.default_rng(7))
+    for shape, std in calls:
+        want = gaussian_noise(shape, std, plain)
+        got = ahead.field(shape, std)
+        assert got.shape == shape and got.dtype == np.float32
+        assert np.array_equal(got, want)
+
+
+def test_a_field_stays_valid_until_the_next_call():
+    ahead = NoiseAhead(np.random.default_rng(1))
+    first = ahead.field((40, 30, 3), 3.0)
+    kept = first.copy()
+    ahead.wait()  # the next field is drawn meanwhile, into the other buffer
+    assert np.array_equal(first, kept)
+    assert not np.array_equal(ahead.field((40, 30, 3), 3.0), kept)
+
+
+def test_the_main_threads_opencv_rng_is_left_alone():
+    """OpenCV's RNG is per thread: fields drawn on the worker do not move the caller's."""
+    ahead = NoiseAhead(np.random.default_rng(2))
+    cv2.setRNGSeed(99)
+    want = cv2.randu(np.empty(8, np.float32), 0.0, 1.0).copy()
+    cv2.setRNGSeed(99)
+    ahead.field((10, 10, 3), 3.0)
+    ahead.field((10, 10, 3), 3.0)
+    ahead.wait()
+    assert np.array_equal(cv2.randu(np.empty(8, np.float32), 0.0, 1.0), want)
+
+
+def test_camera_frames_with_noise_drawn_ahead_are_the_same_frames():
+    box = make_world([[0, -2, 4, -2], [4, -2, 4, 2], [4, 2, 0, 2], [0, 2, 0, -2]])
+    plain = CameraRenderer(box, CameraSpec())
+    ahead = CameraRenderer(box, CameraSpec())
+    rng_plain, noise = np.random.default_rng(3), NoiseAhead(np.random.default_rng(3))
+    for step in range(4):
+        pose, zoom = (1.0 + 0.2 * step, 0.1 * step, 0.05 * step), 1.0 + step
+        want = plain.frame(pose, 0.0, zoom, rng_plain).image
+        assert np.array_equal(ahead.frame(pose, 0.0, zoom, noise).image, want)
