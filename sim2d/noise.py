@@ -8,6 +8,7 @@ second core does it; the fields are exactly the ones ``gaussian_noise`` gives.
 """
 from __future__ import annotations
 
+import os
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 
@@ -57,6 +58,15 @@ def _pool() -> ThreadPoolExecutor:
         if _POOL is None:
             _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="semmap-noise")
         return _POOL
+
+
+def _forget_pool() -> None:
+    global _POOL
+    _POOL = None
+
+
+# a forked child has none of its parent's threads: it makes its own worker when it needs one
+os.register_at_fork(after_in_child=_forget_pool)
 
 
 class NoiseAhead:

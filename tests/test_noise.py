@@ -52,3 +52,17 @@ def test_camera_frames_with_noise_drawn_ahead_are_the_same_frames():
         pose, zoom = (1.0 + 0.2 * step, 0.1 * step, 0.05 * step), 1.0 + step
         want = plain.frame(pose, 0.0, zoom, rng_plain).image
         assert np.array_equal(ahead.frame(pose, 0.0, zoom, noise).image, want)
+
+
+def test_a_forked_child_draws_noise_on_a_worker_of_its_own():
+    """A child forked after the parent started the noise worker has no thread behind the
+    parent's pool: it must start its own, not queue fields nobody draws."""
+    import multiprocessing
+    want = NoiseAhead(np.random.default_rng(5)).field((8, 8, 3), 3.0).copy()
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        got = pool.apply_async(_field_in_child).get(timeout=30)
+    assert np.array_equal(got, want)
+
+
+def _field_in_child() -> np.ndarray:
+    return NoiseAhead(np.random.default_rng(5)).field((8, 8, 3), 3.0).copy()
