@@ -1278,9 +1278,10 @@ def render(world: World, cam_pose, tilt: float, zoom: float, spec: CameraSpec,
         Zoom factor (> 0); the horizontal field of view is
         ``2 * atan(tan(hfov / 2) / zoom)``.
     spec : CameraSpec
-    rng : numpy.random.Generator
+    rng : numpy.random.Generator or sim2d.noise.NoiseAhead
         Source of the image noise; the image is a deterministic function of
-        the scene and the generator's state.
+        the scene and the generator's state (the same with a ``NoiseAhead``
+        over it, which draws the noise a frame ahead on a thread).
     catalogue : semantic.objects.Catalogue, optional
         Pictures and sizes of the world's objects (default: the packaged
         catalogue; only loaded when the world has objects).

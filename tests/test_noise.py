@@ -66,3 +66,58 @@ def test_a_forked_child_draws_noise_on_a_worker_of_its_own():
 
 def _field_in_child() -> np.ndarray:
     return NoiseAhead(np.random.default_rng(5)).field((8, 8, 3), 3.0).copy()
+
+
+def test_a_failed_draw_spends_its_seed_as_in_turn_and_the_sequence_goes_on():
+    """A field that cannot be drawn raises, as drawing it in turn does, and spends its seed
+    as that does; the next call gets the field drawing in turn gives next."""
+    import pytest
+    plain, ahead = np.random.default_rng(9), NoiseAhead(np.random.default_rng(9))
+    assert np.array_equal(ahead.field((6, 6, 3), 3.0), gaussian_noise((6, 6, 3), 3.0, plain))
+    with pytest.raises(ValueError):
+        gaussian_noise((6, 6, 3), "loud", plain)
+    with pytest.raises(ValueError):
+        ahead.field((6, 6, 3), "loud")
+    for _ in range(2):
+        assert np.array_equal(ahead.field((6, 6, 3), 3.0),
+                              gaussian_noise((6, 6, 3), 3.0, plain))
+
+
+_FORKED: NoiseAhead | None = None
+
+
+def _field_after_fork(queue) -> None:
+    queue.put(_FORKED.field((500, 500, 3), 3.0).copy())
+
+
+def test_a_child_forked_mid_draw_draws_that_field_again():
+    """The parent's draw of the next field never finishes in a forked child (its thread is
+    not there): the child draws that field again from the seed it kept."""
+    import multiprocessing
+    global _FORKED
+    _FORKED = ahead = NoiseAhead(np.random.default_rng(11))
+    ahead.field((500, 500, 3), 3.0)  # the next field is being drawn as the process forks
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+    child = context.Process(target=_field_after_fork, args=(queue,))
+    child.start()
+    got = queue.get(timeout=30)
+    child.join(timeout=30)
+    assert np.array_equal(got, ahead.field((500, 500, 3), 3.0))
+
+
+def test_without_threads_the_fields_are_drawn_in_turn(monkeypatch):
+    monkeypatch.setenv("SEMMAP_THREADS", "0")
+    plain, ahead = np.random.default_rng(4), NoiseAhead(np.random.default_rng(4))
+    assert not ahead.threaded
+    for _ in range(3):
+        assert np.array_equal(ahead.field((5, 7, 3), 3.0), gaussian_noise((5, 7, 3), 3.0, plain))
+
+
+def test_a_sweep_worker_with_every_core_busy_runs_without_helper_threads(monkeypatch):
+    from blocks.sweep.worker import init_pool_worker
+    monkeypatch.delenv("SEMMAP_THREADS", raising=False)
+    init_pool_worker(None, helper_threads=True)
+    assert NoiseAhead(np.random.default_rng(0)).threaded
+    init_pool_worker(None, helper_threads=False)
+    assert not NoiseAhead(np.random.default_rng(0)).threaded

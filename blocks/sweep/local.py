@@ -15,6 +15,7 @@ workers at once.
 from __future__ import annotations
 
 import multiprocessing
+import os
 from concurrent.futures import FIRST_COMPLETED, CancelledError, TimeoutError, wait
 from pathlib import Path
 from typing import Callable
@@ -79,8 +80,10 @@ def run_local(tasks: list[SweepTask], config: SweepConfig, root: str | Path, *, 
             task = inflight.pop(future)
             on_done(task, _outcome(future, task, config, root, hard))
 
-    pool = ProcessPool(max_workers=jobs, initializer=init_pool_worker, initargs=(stop,),
-                       context=context)
+    # a run's helper thread (the camera noise) pays only while a core is idle
+    helper_threads = jobs < (os.cpu_count() or 1)
+    pool = ProcessPool(max_workers=jobs, initializer=init_pool_worker,
+                       initargs=(stop, helper_threads), context=context)
     try:
         while queue or inflight:
             while queue and len(inflight) < jobs:

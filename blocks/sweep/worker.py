@@ -11,6 +11,7 @@ record (:func:`record_failure`).
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import time
 from dataclasses import asdict, dataclass
@@ -144,10 +145,14 @@ def record_failure(root: str | Path, task: SweepTask, config: SweepConfig, statu
 _STOP_FLAG: Any = None
 
 
-def init_pool_worker(stop_flag: Any) -> None:
-    """Start a pool worker with the sweep's stop flag (a ``multiprocessing.Event``)."""
+def init_pool_worker(stop_flag: Any, helper_threads: bool = True) -> None:
+    """Start a pool worker with the sweep's stop flag (a ``multiprocessing.Event``), and
+    without the runs' helper threads (``SEMMAP_THREADS=0``: the camera draws its noise in
+    turn) when the sweep's runs keep every core busy already."""
     global _STOP_FLAG
     _STOP_FLAG = stop_flag
+    if not helper_threads:
+        os.environ["SEMMAP_THREADS"] = "0"
 
 
 def run_task_in_pool(task: SweepTask, config: SweepConfig, root: str) -> TaskOutcome:
