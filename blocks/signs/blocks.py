@@ -44,7 +44,8 @@ def _camera_spec(robot: str):
 class Detector(Block):
     """The paper's textual sign detector: sign plates in each camera frame (OpenCV).
 
-    Finds bright, bordered, text-bearing quadrilaterals and reports each one's
+    Finds bordered, text-bearing quadrilaterals (light ones, and with
+    ``looks: any`` outlined ones of any colour) and reports each one's
     corners, bearing and range (from its apparent height).  Trigger it with the
     camera's ``fresh`` event.  With the optional ground truth ``visible``
     connected (the camera's), it counts true and false detections into run.json
@@ -61,6 +62,11 @@ class Detector(Block):
     params = {"robot": ROBOT,
               "min_score": Param(float, 0.5, "weaker plate candidates are dropped",
                                  min=0.0, max=1.0),
+              "looks": Param(str, "standard", "plates looked for: standard (the light plate "
+                                              "with dark text, as the paper's) or any (also "
+                                              "outlined plates of any colour, light on dark or "
+                                              "dark on light: blocks/signs/detect_any.py)",
+                             choices=("any", "standard")),
               "keep_false_positives": Param(int, 5, "false-positive frames saved for "
                                                     "inspection (needs visible)", min=0)}
 
@@ -78,9 +84,11 @@ class Detector(Block):
     def step(self, image: np.ndarray, zoom: float, tilt: float,
              visible: list | None = None) -> dict[str, Any]:
         from .detect import detect_plates
+        from .detect_any import detect_any_plates
         camera = CameraModel.of(image.shape[1], image.shape[0], self._spec.hfov, float(zoom),
                                 float(tilt))
-        dets = [d for d in detect_plates(image, camera, self._params) if d.score >= self.p.min_score]
+        detect = detect_any_plates if self.p.looks == "any" else detect_plates
+        dets = [d for d in detect(image, camera, self._params) if d.score >= self.p.min_score]
         self._frames += 1
         self._found += len(dets)
         if visible is not None:

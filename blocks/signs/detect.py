@@ -60,8 +60,9 @@ import numpy as np
 
 from .types import PLATE_HEIGHT, PLATE_WIDTH, CameraModel, PlateDetection
 
-__all__ = ["DetectorParams", "above", "body_mask", "components", "detect_plates", "level_floors",
-           "is_detectable", "match_detections", "smoothed_extremes"]
+__all__ = ["DetectorParams", "above", "body_mask", "box_iou", "components", "detect_plates",
+           "detection_of", "drop_nested", "level_floors", "is_detectable", "match_detections",
+           "measure_blob", "reject_blob", "smoothed_extremes"]
 
 
 @dataclass(frozen=True)
@@ -325,16 +326,16 @@ def detect_plates(image: np.ndarray, camera: CameraModel,
         grey_sums = cv2.integral((level >= grey_floor).view(np.uint8))
     out = []
     for box, ks in blobs:
-        feats = _measure(labels, ks, box, level, hi, grey_sums, camera, plate_height, params,
+        feats = measure_blob(labels, ks, box, level, hi, grey_sums, camera, plate_height, params,
                          explain is None)
-        reason = feats if isinstance(feats, str) else _reject(feats, params)
+        reason = feats if isinstance(feats, str) else reject_blob(feats, params)
         if reason is None:
-            out.append(_detection(feats, params))
+            out.append(detection_of(feats, params))
         elif explain is not None:
             x, y, w, h = box
             explain.append(((x, y, x + w - 1, y + h - 1), reason,
                             None if isinstance(feats, str) else feats))
-    out = _drop_nested(out)
+    out = drop_nested(out)
     out.sort(key=lambda d: -d.score)
     return out
 
@@ -394,7 +395,7 @@ def components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return labels, stats
 
 
-def _drop_nested(dets: list[PlateDetection]) -> list[PlateDetection]:
+def drop_nested(dets: list[PlateDetection]) -> list[PlateDetection]:
     """Drop detections lying mostly (60 %) inside a larger one's box.
 
     A plate holds no plate: what passes inside one is a piece of it (a
@@ -569,7 +570,7 @@ def _lsq(u: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
     return a, b, math.sqrt(float(total(r * r)) / n)
 
 
-def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, int],
+def measure_blob(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, int],
              level: np.ndarray, hi: np.ndarray, grey_sums: np.ndarray | None,
              camera: CameraModel, plate_height: float, params: DetectorParams,
              quick: bool = False) -> dict | str:
@@ -585,10 +586,10 @@ def _measure(labels: np.ndarray, ks: tuple[int, ...], box: tuple[int, int, int, 
     are measured.
 
     With ``quick`` (the features of a rejected blob are not wanted, only
-    whether it is rejected) a blob whose text fails :func:`_reject`'s text
+    whether it is rejected) a blob whose text fails :func:`reject_blob`'s text
     test is rejected ("text") before its ring is measured and its text's
     colour: most bright blobs that get that far (the ceiling) have no text.
-    :func:`_reject` rejects a blob when any test fails, so testing one of them
+    :func:`reject_blob` rejects a blob when any test fails, so testing one of them
     sooner rejects the same blobs (the reason may differ).
     """
     x, y, w, h = box
@@ -687,7 +688,7 @@ def _too_small(hl: float, hr: float, width: float, clip: tuple[bool, bool, bool,
     return None
 
 
-def _reject(f: dict, params: DetectorParams) -> str | None:
+def reject_blob(f: dict, params: DetectorParams) -> str | None:
     """Why the blob with features ``f`` (big enough) is not a plate (None if it is one)."""
     hl, hr = f["heights"]
     ring = f["ring_level"]
@@ -777,7 +778,8 @@ def _outer_corners(f: dict, params: DetectorParams) -> np.ndarray:
     return np.array([tl, tr, br, bl], dtype=np.float64)
 
 
-def _detection(f: dict, params: DetectorParams) -> PlateDetection:
+def detection_of(f: dict, params: DetectorParams) -> PlateDetection:
+    """The detection of a blob :func:`reject_blob` passed (its features ``f``)."""
     corners = f["corners"]
     bearing, rng, aspect, _ = f["geometry"]
     H, W = f["shape"]
@@ -1148,7 +1150,7 @@ def match_detections(detections: list[PlateDetection], truth_visible: list[dict]
         for j, t in enumerate(truth_visible):
             x0, y0, x1, y1 = t["bbox"]
             inside = x0 - margin <= cu <= x1 + margin and y0 - margin <= cv <= y1 + margin
-            iou = _iou(det.bbox, t["bbox"])
+            iou = box_iou(det.bbox, t["bbox"])
             if (inside or iou >= 0.3) and (best is None or iou > best_iou):
                 best, best_iou = j, iou
         if best is None:
@@ -1168,7 +1170,8 @@ def match_detections(detections: list[PlateDetection], truth_visible: list[dict]
     return tp, fp, fn, matches
 
 
-def _iou(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> float:
+def box_iou(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> float:
+    """Intersection over union of two inclusive pixel boxes ``(x0, y0, x1, y1)``."""
     ix = min(a[2], b[2]) - max(a[0], b[0]) + 1
     iy = min(a[3], b[3]) - max(a[1], b[1]) + 1
     if ix <= 0 or iy <= 0:
