@@ -64,7 +64,7 @@ def sample_views(worlds: str, per_world: int, seed: int = 0, aimed: float = 0.7)
                     break
             else:
                 continue
-            views.append({"world": world, "pose": pose, "pan": pan,
+            views.append({"world": world, "name": ref.name, "pose": pose, "pan": pan,
                           "tilt": float(rng.uniform(0.0, math.radians(25))),
                           "zoom": float(rng.uniform(1.0, 3.0)), "seed": int(rng.integers(2**31))})
     return views
@@ -74,6 +74,7 @@ def measure(views: list[dict]) -> dict:
     """Counts, recalls and ms per frame of each detector on the same rendered frames."""
     spec = CameraSpec()
     counts = {name: np.zeros(5, np.int64) for name in DETECTORS}
+    per_world: dict[str, dict[str, np.ndarray]] = {}  # building -> detector -> (tp, fn)
     seconds = dict.fromkeys(DETECTORS, 0.0)
     for view in views:
         cam = camera_pose(view["pose"], spec, view["pan"])
@@ -88,6 +89,8 @@ def measure(views: list[dict]) -> dict:
             tp, fp, fn, _ = match_detections(dets, truth)
             s_tp, _, s_fn, _ = match_detections(dets, truth, **STRICT)
             counts[name] += (tp, fp, fn, s_tp, s_fn)
+            per_world.setdefault(view["name"], {n: np.zeros(2, np.int64) for n in DETECTORS})
+            per_world[view["name"]][name] += (tp, fn)
     out = {"views": len(views)}
     for name, (tp, fp, fn, s_tp, s_fn) in counts.items():
         out[name] = {"true_positives": int(tp), "false_positives": int(fp),
@@ -95,6 +98,12 @@ def measure(views: list[dict]) -> dict:
                      "recall": round(tp / (tp + fn), 3) if tp + fn else None,
                      "recall_strict": round(s_tp / (s_tp + s_fn), 3) if s_tp + s_fn else None,
                      "ms_per_frame": round(1000 * seconds[name] / max(len(views), 1), 3)}
+        # per building with at least 3 detectable plates in its views: median and worst recall
+        recalls = sorted((tp_fn[name][0] / tp_fn[name].sum(), building)
+                         for building, tp_fn in per_world.items() if tp_fn[name].sum() >= 3)
+        if recalls:
+            out[name]["building_recall_median"] = round(float(np.median([r for r, _ in recalls])), 3)
+            out[name]["building_recall_worst"] = [round(float(recalls[0][0]), 3), recalls[0][1]]
     return out
 
 
@@ -106,12 +115,14 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     result = measure(sample_views(args.worlds, args.per_world, args.seed))
     print(f"{result['views']} views of {args.worlds}")
-    print(f"{'detector':10s} {'TP':>5s} {'FP':>5s} {'FN':>5s} {'recall':>7s} {'strict':>7s} {'ms':>7s}")
+    print(f"{'detector':10s} {'TP':>5s} {'FP':>5s} {'FN':>5s} {'recall':>7s} {'strict':>7s} {'ms':>7s}"
+          "  per building: median recall, worst")
     for name in DETECTORS:
         r = result[name]
         print(f"{name:10s} {r['true_positives']:5d} {r['false_positives']:5d} "
               f"{r['false_negatives']:5d} {r['recall']!s:>7s} {r['recall_strict']!s:>7s} "
-              f"{r['ms_per_frame']:7.3f}")
+              f"{r['ms_per_frame']:7.3f}  {r.get('building_recall_median')!s:>6s}, "
+              f"{r.get('building_recall_worst')}")
     return 0
 
 

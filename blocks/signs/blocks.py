@@ -71,9 +71,11 @@ class Detector(Block):
                                                     "inspection (needs visible)", min=0)}
 
     def setup(self) -> None:
-        from .detect import DetectorParams
+        from .detect import DetectorParams, detect_plates
+        from .detect_any import detect_any_plates
         self._spec, _ = _camera_spec(self.p.robot)
         self._params = DetectorParams()
+        self._detect = detect_any_plates if self.p.looks == "any" else detect_plates
 
     def reset(self) -> None:
         self._frames = 0
@@ -83,12 +85,9 @@ class Detector(Block):
 
     def step(self, image: np.ndarray, zoom: float, tilt: float,
              visible: list | None = None) -> dict[str, Any]:
-        from .detect import detect_plates
-        from .detect_any import detect_any_plates
         camera = CameraModel.of(image.shape[1], image.shape[0], self._spec.hfov, float(zoom),
                                 float(tilt))
-        detect = detect_any_plates if self.p.looks == "any" else detect_plates
-        dets = [d for d in detect(image, camera, self._params) if d.score >= self.p.min_score]
+        dets = [d for d in self._detect(image, camera, self._params) if d.score >= self.p.min_score]
         self._frames += 1
         self._found += len(dets)
         if visible is not None:
