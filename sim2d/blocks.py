@@ -229,6 +229,26 @@ class Sonar(_RobotBlock):
         return {"ranges": ranges, "echo": echo, "fresh": True}
 
 
+@block("sim2d.bumpers", category="sim2d")
+class Bumpers(_RobotBlock):
+    """The robot's contact switches (the robot file's ``bumpers``): which are pressed now.
+
+    A real robot's last line of defence, and how it knows it is jammed
+    against something its sonars cannot hear (a wall's end seen edge on).
+    ``any`` is true while one is pressed.
+    """
+
+    inputs = {"sim": SIM}
+    outputs = {"pressed": Port.array("bool", (None,), frame="robot",
+                                     doc="per bumper, in the robot file's order"),
+               "any": Port.scalar("bool", doc="true while any bumper is pressed")}
+    params = {"robot": ROBOT}
+
+    def step(self, sim: Simulation) -> dict[str, Any]:
+        pressed = sim.bumpers(self._robot(sim).name)
+        return {"pressed": pressed, "any": bool(pressed.any())}
+
+
 @block("sim2d.odometry", category="sim2d")
 class Odometry(_RobotBlock):
     """Dead-reckoned pose (x, y, theta), starting at the true start pose, drifting with motion."""

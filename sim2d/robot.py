@@ -51,6 +51,10 @@ class RobotSpec:
     sonar_mounts: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # x, y, theta(rad)
     sonar_groups: dict[str, list[str]] = field(default_factory=dict)
     camera: dict[str, Any] = field(default_factory=dict)
+    #: Contact switches round the body: (name, from, to), bearings (rad) in the robot
+    #: frame, CCW from ``from`` to ``to``; a switch is pressed while something touches
+    #: the body within its span.
+    bumpers: list[tuple[str, float, float]] = field(default_factory=list)
     source: str = ""
 
     @property
@@ -129,6 +133,7 @@ def load_robot(name_or_path: str | Path) -> RobotSpec:
                              line=line_of(groups, group), field=f"sonar.groups.{group}",
                              hint=f"Sensors: {', '.join(names)}.")
     camera = _section(doc, "camera", path)
+    bumpers = _bumpers(doc.get("bumpers") or [], path)
     for key in ("length", "width", "mass"):
         value = body.get(key, RobotSpec.__dataclass_fields__[key].default)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0:
@@ -143,5 +148,25 @@ def load_robot(name_or_path: str | Path) -> RobotSpec:
         sonar=_numbers(sonar, SonarSpec, path, "sonar"),
         sonar_names=names, sonar_mounts=np.asarray(mounts, dtype=np.float64).reshape(-1, 3),
         sonar_groups={str(k): list(v) for k, v in groups.items()},
-        camera=dict(camera), source=str(path),
+        camera=dict(camera), bumpers=bumpers, source=str(path),
     )
+
+
+def _bumpers(items: Any, path: Path) -> list[tuple[str, float, float]]:
+    """The robot file's ``bumpers``: [{name, from, to}] in degrees, checked."""
+    if not isinstance(items, list):
+        raise WorldError("'bumpers' must be a list of {name, from, to}", file=path,
+                         field="bumpers")
+    out: list[tuple[str, float, float]] = []
+    for i, item in enumerate(items):
+        ok = isinstance(item, dict) and isinstance(item.get("name"), str) and all(
+            isinstance(item.get(k), (int, float)) and not isinstance(item.get(k), bool)
+            for k in ("from", "to"))
+        if not ok:
+            raise WorldError(f"bumper {i} must be {{name, from, to}} (bearings in degrees)",
+                             file=path, line=line_of(items, i), field=f"bumpers[{i}]")
+        if any(item["name"] == name for name, _, _ in out):
+            raise WorldError(f"duplicate bumper name '{item['name']}'", file=path,
+                             line=line_of(items, i), field=f"bumpers[{i}]")
+        out.append((item["name"], math.radians(item["from"]), math.radians(item["to"])))
+    return out

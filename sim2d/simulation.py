@@ -248,6 +248,32 @@ class Simulation:
         near[names.index(robot.name)] = False
         return edges[near].reshape(-1, 5)
 
+    def bumpers(self, name: str) -> np.ndarray:
+        """Which of the robot's bumpers are pressed now: something touches the body in its span.
+
+        Each contact's normal (from the robot towards what it touches) is put
+        in the robot frame; a bumper is pressed if its bearing lies within the
+        bumper's span.  The normal, not the contact point: a body pressed flat
+        against a wall touches it at two corners, whose bearings say nothing
+        about which face is pressed.
+        """
+        robot = self.robots[name]
+        spans = robot.spec.bumpers
+        pressed = np.zeros(len(spans), dtype=bool)
+        if not spans or robot.in_contact == 0:
+            return pressed
+        robot.shape.cache_bb()
+        theta = float(robot.body.angle)
+        for info in self.space.shape_query(robot.shape):
+            if not info.contact_point_set.points:
+                continue
+            normal = info.contact_point_set.normal
+            bearing = math.atan2(normal.y, normal.x) - theta
+            for k, (_, start, end) in enumerate(spans):
+                if (bearing - start) % (2 * math.pi) <= (end - start) % (2 * math.pi):
+                    pressed[k] = True
+        return pressed
+
     def penetration(self, name: str) -> float:
         """How deep (m) the robot overlaps anything now; 0 when it touches nothing."""
         robot = self.robots[name]

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -67,6 +68,41 @@ def test_loop_closure_rule():
     short = LoopClosure(min_travel=10.0)
     for x in (0.0, 0.5, 0.2):
         assert not short.update(x, 0.0, 0.0)  # leaving the start is not a loop
+
+
+def _drive(loop: LoopClosure, corners, step: float = 0.1) -> bool:
+    """Feed ``loop`` poses every ``step`` m along the polyline ``corners`` (heading along it)."""
+    closed, t = False, 0.0
+    for (x0, y0), (x1, y1) in zip(corners[:-1], corners[1:]):
+        heading = math.atan2(y1 - y0, x1 - x0)
+        n = max(1, int(math.hypot(x1 - x0, y1 - y0) / step))
+        for k in range(1, n + 1):
+            t += 1.0
+            closed = loop.update(x0 + (x1 - x0) * k / n, y0 + (y1 - y0) * k / n, t, heading)
+    return closed
+
+
+def test_a_lap_with_headings_closes_the_loop():
+    loop = LoopClosure()
+    assert _drive(loop, [(0, 0), (4, 0), (4, 5), (-4, 5), (-4, 0), (0.5, 0)])
+    assert loop.turned == pytest.approx(2 * math.pi, abs=0.1) and loop.refused == 0
+
+
+def test_turning_back_in_a_dead_end_is_not_a_loop():
+    # Out along a corridor, round at its end (half a turn), back past the start the other way.
+    loop = LoopClosure()
+    assert not _drive(loop, [(0, 0), (12, 0), (12, 0.8), (0, 0.8), (-6, 0.8)])
+    assert loop.refused == 1 and loop.closed_at is None
+    # ...and a lap that then comes by facing the right way does close it
+    assert _drive(loop, [(-6, 0.8), (-6, -4), (-3, -4), (-3, 0), (0.5, 0)])
+
+
+def test_a_pass_the_right_way_without_a_lap_is_not_a_loop():
+    # A figure of eight comes back to the start heading east, having turned no whole turn.
+    loop = LoopClosure()
+    assert not _drive(loop, [(0, 0), (4, 0), (4, 3), (2, 3), (2, -3), (-2, -3), (-2, 0),
+                             (0.3, 0)])
+    assert loop.refused == 1
 
 
 # Targets for the packaged knowledge bases (see docs/exploration.md). The complex

@@ -198,3 +198,34 @@ def test_cone_ranges_near_are_cone_ranges_to_the_bit():
         got = cone_ranges_near(sensors, world.segments, half, 4.0, chunk=chunk)
         assert np.array_equal(got, expected)
         assert np.isfinite(expected).mean() > 0.3
+
+
+@pytest.mark.parametrize("heading, v, w, pressed", [
+    (0.0, 0.5, 0.0, "front"),  # head on into the east wall
+    (0.4, 0.5, 0.0, "front"),  # at an angle: the front face still meets it
+    (math.pi, -0.5, 0.0, "rear"),  # backing into it
+    (math.pi / 2, 0.0, 0.0, ""),  # standing clear of everything
+])
+def test_bumpers_say_which_side_touches(heading, v, w, pressed):
+    spec = load_robot("atrv_mini")
+    assert [name for name, _, _ in spec.bumpers] == ["front", "left", "rear", "right"]
+    sim = Simulation(make_world(BOX, thickness=0.1), [("r", spec, (9.0, 2.0, heading))])
+    for _ in range(40):
+        sim.command("r", v, w)
+        sim.step(0.1)
+    names = [name for (name, _, _), on in zip(spec.bumpers, sim.bumpers("r")) if on]
+    assert names == ([pressed] if pressed else [])
+
+
+def test_a_corner_swept_into_a_wall_presses_the_bumper_on_that_side():
+    spec = load_robot("atrv_mini")
+    # Facing north, its right face 5 cm from the east wall: turning clockwise on the spot
+    # swings the front-right corner into it.
+    sim = Simulation(make_world(BOX, thickness=0.1), [("r", spec, (9.65, 2.0, math.pi / 2))])
+    for _ in range(30):
+        sim.command("r", 0.0, -1.0)
+        sim.step(0.1)
+        if sim.robots["r"].collisions:
+            break
+    pressed = [n for (n, _, _), on in zip(spec.bumpers, sim.bumpers("r")) if on]
+    assert sim.robots["r"].collisions == 1 and pressed == ["right"]

@@ -1,6 +1,7 @@
 """Blocks of the two-layer fuzzy perimeter follower (thin adapters over controller.py)."""
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -149,11 +150,14 @@ class Follow(_FuzzyBlock):
 
 @block("explore.loop_closure", category="explore")
 class LoopClosureBlock(Block):
-    """Fires ``done`` once the robot is back at its start after real progress.
+    """Fires ``done`` once the robot is back at its start after going round.
 
     The paper's termination rule: having gone round the perimeter, the robot
     returns to where it began. ``min_travel`` and ``min_away`` keep the
-    departure from counting.
+    departure from counting; the heading on return (within
+    ``max_heading_error`` of the start's) and the net turn (at least
+    ``min_turning`` degrees, either sense) keep a robot that turned back in a
+    dead end from calling its way back a loop. See :mod:`blocks.explore.loop`.
     """
 
     inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
@@ -165,14 +169,21 @@ class LoopClosureBlock(Block):
               "min_travel": Param(float, 10.0, "path length before a return counts", unit="m",
                                   min=0.0),
               "min_away": Param(float, 3.0, "how far from the start the path must get",
-                                unit="m", min=0.0)}
+                                unit="m", min=0.0),
+              "max_heading_error": Param(float, 60.0, "largest heading difference from the "
+                                                      "start's on return", unit="deg", min=0.0,
+                                         max=180.0),
+              "min_turning": Param(float, 270.0, "smallest net turn since the start (a lap "
+                                                 "turns 360)", unit="deg", min=0.0)}
     category = "explore"
 
     def reset(self) -> None:
-        self.loop = LoopClosure(self.p.radius, self.p.min_travel, self.p.min_away)
+        self.loop = LoopClosure(self.p.radius, self.p.min_travel, self.p.min_away,
+                                math.radians(self.p.max_heading_error),
+                                math.radians(self.p.min_turning))
 
     def step(self, pose: np.ndarray) -> dict[str, Any]:
-        done = self.loop.update(float(pose[0]), float(pose[1]), self.ctx.time)
+        done = self.loop.update(float(pose[0]), float(pose[1]), self.ctx.time, float(pose[2]))
         return {"done": done, "travelled": self.loop.travelled}
 
     def finish(self) -> None:
@@ -180,6 +191,8 @@ class LoopClosureBlock(Block):
             self.report("loop_closed", self.loop.closed_at is not None)
             self.report("loop_time_s", self.loop.closed_at)
             self.report("distance_travelled_m", round(self.loop.travelled, 3))
+            self.report("passes_refused", self.loop.refused)
+            self.report("turned_deg", round(math.degrees(self.loop.turned), 1))
 
 
 @block("explore.follow_metrics", category="explore")
@@ -210,3 +223,152 @@ class FollowMetrics(Block):
         if hasattr(self, "stats"):
             for key, value in self.stats.summary().items():
                 self.report(key, value)
+
+
+@block("explore.frontiers", category="explore")
+class FrontierExploration(Block):
+    """Explores the rest of the floor after the follower: frontiers on the robot's own map.
+
+    A behaviour behind the perimeter follower (subsumption): while the
+    follower explores, ``v_in`` and ``w_in`` pass through.  Once its loop
+    closes (``follower_done``), or once it has driven ``stale_distance``
+    without the map gaining floor (circling an island), the block drives
+    instead: to the cheapest reachable frontier of ``map`` (planned with A*,
+    driven with pure pursuit, a sonar guard checking every command), again and
+    again, until none is left.  A bumper pressed, or a command odometry does
+    not see (a stall), makes it back off and plan again, with what it touched
+    on the map; while the follower drives, it backs the follower off, turns it
+    away from the wall and hands back, or takes over for good once the
+    follower keeps getting caught.  ``done`` fires then; run.json gets why it
+    ended (``explored``, ``stuck`` or ``time budget``) and what it did.  With
+    ``enabled`` false it passes the follower through, ``done`` included: the
+    paper's perimeter-only exploration.  See :mod:`blocks.explore.explorer`.
+    """
+
+    inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
+                                 doc="the robot's pose, in the map's frame (odometry)"),
+              "ranges": Port.array("float64", (16,), unit="m", frame="robot",
+                                   doc="sonar ranges, in the robot file's order"),
+              "map": Port(kind="handle", doc="the robot's map: snapshot() gives an OccupancyMap "
+                                             "with unknown cells (e.g. maps.logodds_map)"),
+              "v_in": Port.scalar("float64", unit="m/s", doc="the follower's translation"),
+              "w_in": Port.scalar("float64", unit="rad/s", doc="the follower's rotation"),
+              "follower_done": Port.scalar("bool", required=False, default=False,
+                                           doc="the follower is done (its loop closed)"),
+              "hold": Port.scalar("bool", required=False, default=False,
+                                  doc="stop (e.g. the sign seeker's stop)"),
+              "preempted": Port.scalar("bool", required=False, default=False,
+                                       doc="another behaviour drives (e.g. a room visit; "
+                                           "connect it with a delay of 1)"),
+              "bumpers": Port.array("bool", (None,), required=False, default=None,
+                                    frame="robot", doc="the contact switches pressed now "
+                                                       "(sim2d.bumpers), in the robot "
+                                                       "file's order")}
+    outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity"),
+               "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity (CCW +)"),
+               "exploring": Port.scalar("bool", doc="true while the frontier explorer drives"),
+               "done": Port.scalar("bool", doc="exploration has ended")}
+    params = {
+        "enabled": Param(bool, True, "explore frontiers after the follower; false: the "
+                                     "follower's perimeter alone (the paper's exploration)"),
+        "robot": Param(str, "atrv_mini", "robot model (sonar mounts and velocity limits)"),
+        "radius": Param(float, 0.36, "obstacle inflation of the plans", unit="m", min=0.05),
+        "cruise": Param(float, 0.45, "speed on the way to a frontier", unit="m/s", min=0.01),
+        "min_frontier": Param(float, 0.6, "ignore frontiers shorter than this", unit="m",
+                              min=0.0),
+        "reach": Param(float, 1.0, "a frontier's goal is at most this far from it", unit="m",
+                       min=0.1),
+        "gain_weight": Param(float, 1.0, "metres of travel one metre of frontier is worth",
+                             min=0.0),
+        "stop_distance": Param(float, 0.3, "an echo this close in front of the body (or "
+                                           "behind it when backing) fails the way", unit="m",
+                               min=0.0),
+        "wall_margin": Param(float, 0.0, "unknown cells this close to a wall make no frontier",
+                             unit="m", min=0.0),
+        "trail_time": Param(float, -1.0, "seconds of the robot's track kept passable on the "
+                                         "plans (negative: all of it)", unit="s"),
+        "stall_time": Param(float, 12.0, "a way with no progress this long fails", unit="s",
+                            min=1.0),
+        "max_failures": Param(int, 8, "this many failed ways in a row end it 'stuck'", min=1),
+        "stale_distance": Param(float, 40.0, "take over once the follower drove this far "
+                                             "without new floor (0: only after its loop)",
+                                unit="m", min=0.0),
+        "stale_gain": Param(float, 2.0, "...new floor meaning at least this much known area",
+                            unit="m^2", min=0.0),
+    }
+    category = "explore"
+
+    def setup(self) -> None:
+        from blocks.navigate.pursuit import PursuitParams
+
+        from .explorer import ExploreParams
+        from blocks.navigate.guard import SonarGuard
+        spec = _robot_spec(self.p.robot)
+        self._guard = SonarGuard(np.asarray(spec.sonar_mounts, dtype=np.float64),
+                                 length=spec.length, width=spec.width,
+                                 cone_deg=spec.sonar.cone_deg, max_range=spec.sonar.max_range,
+                                 ahead=self.p.stop_distance)
+        self._bumpers = list(spec.bumpers)
+        limits = spec.limits
+        self._pursuit = PursuitParams(cruise=min(self.p.cruise, limits.max_speed),
+                                      max_speed=limits.max_speed,
+                                      max_turn_rate=limits.max_turn_rate,
+                                      lookahead=0.5, lookahead_min=0.25, goal_tolerance=0.15)
+        self._params = ExploreParams(radius=self.p.radius, min_frontier=self.p.min_frontier,
+                                     reach=self.p.reach, gain_weight=self.p.gain_weight,
+                                     stall_time=self.p.stall_time,
+                                     max_failures=self.p.max_failures,
+                                     stale_distance=self.p.stale_distance,
+                                     stale_gain=self.p.stale_gain,
+                                     wall_margin=self.p.wall_margin,
+                                     trail_time=(math.inf if self.p.trail_time < 0
+                                                 else self.p.trail_time))
+
+    def reset(self) -> None:
+        from .explorer import FrontierExplorer
+        self._map: Any = None
+        self.explorer = FrontierExplorer(self._snapshot, self._guard, self._params,
+                                         self._pursuit, bumpers=self._bumpers)
+
+    def _snapshot(self) -> Any:
+        snapshot = getattr(self._map, "snapshot", None)
+        if snapshot is None:
+            raise BlockError("the 'map' input has no snapshot(): it is not a map handle",
+                             node=self.name, field="input 'map'",
+                             hint="Connect a map block's 'map' output, e.g. "
+                                  "maps.logodds_map's.")
+        return snapshot()
+
+    def step(self, pose: np.ndarray, ranges: np.ndarray, map: Any,  # noqa: A002
+             v_in: float, w_in: float, follower_done: bool = False, hold: bool = False,
+             preempted: bool = False, bumpers: np.ndarray | None = None) -> dict[str, Any]:
+        if not self.p.enabled:
+            return {"v": float(v_in), "w": float(w_in), "exploring": False,
+                    "done": bool(follower_done)}
+        self._map = map
+        if bumpers is not None and len(bumpers) != len(self._bumpers):
+            raise BlockError(f"{len(bumpers)} bumpers on the 'bumpers' input, but the robot "
+                             f"file '{self.p.robot}' has {len(self._bumpers)}",
+                             node=self.name, field="input 'bumpers'",
+                             hint="Connect sim2d.bumpers of the same robot model.")
+        command = self.explorer.step(self.ctx.time, pose, np.asarray(ranges),
+                                     follower_done=bool(follower_done), hold=bool(hold),
+                                     preempted=bool(preempted), bumpers=bumpers,
+                                     follower_v=float(v_in))
+        done = self.explorer.ended
+        if command is None:
+            if done:
+                return {"v": 0.0, "w": 0.0, "exploring": False, "done": True}
+            return {"v": float(v_in), "w": float(w_in), "exploring": False, "done": False}
+        return {"v": command[0], "w": command[1], "exploring": True, "done": False}
+
+    def finish(self) -> None:
+        if not self.p.enabled:
+            self.report("end_reason", "perimeter only")
+            return
+        if hasattr(self, "explorer"):
+            summary = self.explorer.summary(self.ctx.time)
+            for key, value in summary.items():
+                self.report(key, value)
+            self.report("explored", summary["end_reason"] == "explored")
+            self.report("stuck", summary["end_reason"] == "stuck")

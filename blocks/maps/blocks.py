@@ -189,11 +189,13 @@ class LogOddsMapBlock(_MapWriter):
 
     Free inside the cone up to the reading, occupied on an arc at the reading,
     unknown beyond; a max-range reading clears but marks nothing. Writes
-    ``maps/probabilistic.yaml``.
+    ``maps/probabilistic.yaml``. Unlike the paper's map it tells walls from
+    unknown space, so an explorer finds its frontiers on it.
     """
 
     map_name = "probabilistic"
     inputs = {"ranges": RANGES, "pose": POSE, "truth": TRUTH}
+    outputs = {"map": MAP_HANDLE}
     params = {
         "robot": ROBOT, "resolution": RESOLUTION, "world": WORLD,
         "l_free": Param(float, -0.4, "log-odds added to cells a beam crossed", max=-1e-6),
@@ -201,6 +203,9 @@ class LogOddsMapBlock(_MapWriter):
                        min=1e-6),
         "arc_thickness": Param(float, 0.1, "depth of the occupied arc", unit="m", min=0.01),
         "clamp": Param(float, 4.0, "log-odds are kept within +-clamp", min=0.1),
+        "no_echo_reach": Param(float, -1.0, "how far a reading without an echo clears, "
+                                            "short against specular losses through walls "
+                                            "(negative: the sonar's whole range)", unit="m"),
     }
 
     def setup(self) -> None:
@@ -210,29 +215,41 @@ class LogOddsMapBlock(_MapWriter):
                                        max_range=spec.sonar.max_range,
                                        l_free=self.p.l_free, l_occ=self.p.l_occ,
                                        arc_thickness=self.p.arc_thickness,
-                                       l_min=-self.p.clamp, l_max=self.p.clamp)
+                                       l_min=-self.p.clamp, l_max=self.p.clamp,
+                                       no_echo_reach=(None if self.p.no_echo_reach < 0
+                                                      else self.p.no_echo_reach))
         self.map = LogOddsMap(self.model, resolution=self.p.resolution)  # tables built once
 
     def reset(self) -> None:
         super().reset()
         self.map.clear()
+        self._snapshot: OccupancyMap | None = None
 
-    def step(self, ranges: np.ndarray, pose: np.ndarray, truth: np.ndarray | None = None) -> None:
+    def step(self, ranges: np.ndarray, pose: np.ndarray,
+             truth: np.ndarray | None = None) -> dict[str, Any]:
         self.record_truth(truth)
         x, y, theta = (float(v) for v in pose[:3])
         c, s = math.cos(theta), math.sin(theta)
         mx, my, mt = self.mounts[:, 0], self.mounts[:, 1], self.mounts[:, 2]
         sensors = np.column_stack([x + c * mx - s * my, y + s * mx + c * my, theta + mt])
         self.map.add_scan(sensors, ranges)
+        self._snapshot = None
+        return {"map": self}
+
+    def snapshot(self) -> OccupancyMap | None:
+        """The map as it stands (cached until the next scan)."""
+        if self._snapshot is None:
+            p, (ix, iy) = self.map.probabilities()
+            if p.size == 0:
+                return None
+            origin = (ix * self.p.resolution, iy * self.p.resolution, 0.0)
+            self._snapshot = OccupancyMap(p, self.p.resolution, origin)
+        return self._snapshot
 
     def occupancy_map(self) -> OccupancyMap | None:
-        p, (ix, iy) = self.map.probabilities()
-        if p.size == 0:
-            return None
         self.report("updates", self.map.updates)
         self.report("tiles", self.map.grid.n_tiles)
-        origin = (ix * self.p.resolution, iy * self.p.resolution, 0.0)
-        return OccupancyMap(p, self.p.resolution, origin)
+        return self.snapshot()
 
 
 @block("maps.process_map", category="maps")

@@ -42,6 +42,11 @@ class InverseSonarModel:
         Depth of the occupied arc around the reading (m).
     l_min, l_max
         Clamp of the accumulated log-odds.
+    no_echo_reach
+        How far (m) a reading without an echo clears; None: the whole range.
+        A sonar also hears nothing when its sound glances off a wall
+        (specular loss), and then clearing the whole range draws free floor
+        through that wall; an explorer planning on the map needs a short reach.
     """
 
     cone_deg: float = 30.0
@@ -52,6 +57,7 @@ class InverseSonarModel:
     arc_thickness: float = 0.1
     l_min: float = -4.0
     l_max: float = 4.0
+    no_echo_reach: float | None = None
 
     def __post_init__(self) -> None:
         if not 0 < self.cone_deg < 180:
@@ -62,12 +68,16 @@ class InverseSonarModel:
             raise ValueError("arc_thickness and max_range must be positive")
         if self.l_min >= 0 or self.l_max <= 0:
             raise ValueError("l_min must be negative and l_max positive")
+        if self.no_echo_reach is not None and self.no_echo_reach < 0:
+            raise ValueError(f"no_echo_reach must be >= 0, got {self.no_echo_reach}")
 
     def beam_update(self, rho: np.ndarray, in_cone: np.ndarray, reading: float) -> np.ndarray:
         """Log-odds change for cells at range ``rho`` (m), ``in_cone`` of a beam reading ``reading``."""
         half_arc = self.arc_thickness / 2
         echo = reading < self.max_range - self.max_range_margin
         reach = min(reading, self.max_range)
+        if not echo and self.no_echo_reach is not None:
+            reach = min(reach, self.no_echo_reach)
         delta = np.where(in_cone & (rho < reach - (half_arc if echo else 0.0)),
                          np.float32(self.l_free), np.float32(0.0))
         if echo:

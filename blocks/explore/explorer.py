@@ -1,0 +1,665 @@
+"""Frontier exploration after the perimeter: go where the map ends until it ends nowhere.
+
+Why: the paper's perimeter following sees the walls it follows and what the
+sonar reaches from them; on a ring corridor it goes round one side, at a
+narrow gap it turns back, and it never crosses a hall.  Once its loop has
+closed (or once it brings no new floor for a long stretch, as when it circles
+an island), :class:`FrontierExplorer` takes over: it picks the frontier that
+is cheapest to reach (``explore_lite``'s rule: distance minus a weight times
+the frontier's length), plans there on the robot's own map with the
+project's A* and drives with pure pursuit, and picks again whenever the
+frontier it was heading for is gone (seen), the robot has arrived, or the
+way failed.  It ends with an honest reason:
+
+``explored``
+    No frontier the robot can reach is left, even after a look round on the
+    spot.  Those out of reach for its footprint, and those whose ways kept
+    failing, are counted in run.json.
+``stuck``
+    Too many ways in a row failed without the robot getting anywhere.
+
+A way fails when the sonar guard (:mod:`blocks.navigate.guard`) hears an
+obstacle where the robot is about to go that the map did not show, when a
+bumper is pressed or the robot stalls (it asks to move and odometry says it
+does not: it then undoes its last motion for a moment), or when it makes no
+progress along the way.  What stopped it goes on the planning grid, so the
+next way goes round it.  A goal that failed ``max_attempts`` times, or
+was reached, is not chosen again.
+
+:class:`FrontierExplorer` is a plain state machine fed with poses, sonar
+ranges and a map callback: it is tested without the dataflow engine.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from blocks.navigate.grid import NavGrid, inflate, unblock_traversed
+from blocks.navigate.guard import SonarGuard
+from blocks.navigate.planner import PlanningError, plan
+from blocks.navigate.pursuit import PurePursuit, PursuitParams
+
+from .frontiers import FrontierGoal, find_frontiers, frontier_goals
+
+__all__ = ["ExploreParams", "FrontierExplorer"]
+
+#: The map callback: the robot's map (an OccupancyMap in the frame of the poses), or None.
+MapSource = Callable[[], Any]
+
+
+@dataclass(frozen=True)
+class ExploreParams:
+    """Tuning of :class:`FrontierExplorer` (SI units).
+
+    Attributes
+    ----------
+    radius
+        Obstacle inflation of the planning grid (the robot's circumscribed radius).
+    min_frontier
+        Frontiers shorter than this (m) are ignored.
+    reach
+        A frontier's goal is at most this far (m) from it.
+    gain_weight
+        Metres of extra travel one metre of frontier is worth.
+    replan_every
+        Seconds between looks at the map while driving (is the frontier still there?).
+    close_enough
+        A way the sonar guard stops within this distance (m) of its goal has arrived.
+    stall_window, stall_speed, stall_motion
+        Stalled: for ``stall_window`` s every command asked for at least
+        ``stall_speed`` (m/s) and odometry moved less than ``stall_motion`` (m).
+    escape_turn
+        After backing off from a bump while the follower drives, turn this
+        much (rad) to the left, away from the followed wall, and hand back.
+    follower_bumps, follower_bump_window
+        So many bumps or stalls of the follower within the window (s), or one
+        within ``forget_radius`` of an earlier one, mean it is caught in a
+        cycle: exploration takes over ("follower jammed").
+    bump_memory
+        Radius (m) of the obstacle a bump puts on the planning grid, where
+        the body touched it (what the sonar could not hear stays on the map);
+        an echo that stops the robot is put there too.  0 remembers nothing.
+    nudge_speed, nudge_time
+        Too close to something to turn on the spot, the robot first eases
+        straight away from it at this speed, for at most this long (s) a way.
+    back_off_time, back_off_speed
+        After a bump or a stall the robot undoes its last motion this long (s)
+        at this speed (m/s), and after an echo blocked its way it backs
+        straight off as long, while the sonar guard and the bumpers allow.
+    stall_time
+        A way with no progress for this long (s) fails.
+    max_attempts
+        A goal that failed this many times is not tried again.
+    forget_radius
+        Goals this close (m) to one reached or given up count as the same goal.
+    max_failures
+        This many failed ways in a row, with no goal reached between, end it ``stuck``.
+    stale_distance, stale_gain
+        Take over from the follower once it has driven ``stale_distance`` (m)
+        while the map gained less than ``stale_gain`` (m^2) of known floor: it
+        is going round something it has seen.  0 turns that off.
+    trail_time
+        Seconds of the robot's track kept passable on the planning grid (all
+        of it by default): where it has driven, it fits, and the map was drawn
+        from the same poses, so a doorway it came through is open on the map
+        even when sonar drew its jambs into it.
+    spin_rate
+        Turn rate (rad/s) of the look round it takes before it calls a place explored.
+    footprint
+        Unknown floor within this distance (m) of the robot's track is free: it stood there.
+    wall_margin
+        Unknown cells this close (m) to a wall make no frontier
+        (:func:`~blocks.explore.frontiers.find_frontiers`).
+    """
+
+    radius: float = 0.36
+    min_frontier: float = 0.6
+    reach: float = 1.0
+    gain_weight: float = 1.0
+    replan_every: float = 2.0
+    back_off_time: float = 1.5
+    back_off_speed: float = 0.15
+    stall_time: float = 12.0
+    max_attempts: int = 2
+    forget_radius: float = 0.7
+    max_failures: int = 8
+    stale_distance: float = 40.0
+    stale_gain: float = 2.0
+    trail_time: float = math.inf
+    spin_rate: float = 0.8
+    footprint: float = 0.3
+    wall_margin: float = 0.0
+    close_enough: float = 0.5
+    stall_window: float = 1.5
+    stall_speed: float = 0.1
+    stall_motion: float = 0.03
+    escape_turn: float = 0.6
+    follower_bumps: int = 3
+    follower_bump_window: float = 120.0
+    bump_memory: float = 0.12
+    nudge_speed: float = 0.1
+    nudge_time: float = 2.0
+
+
+@dataclass
+class ExploreResult:
+    """What the exploration did, for run.json."""
+
+    started: float | None = None
+    start_reason: str = ""
+    ended: float | None = None
+    end_reason: str = ""
+    goals_reached: int = 0
+    goals_given_up: int = 0
+    ways_failed: int = 0
+    blocked_ahead: int = 0
+    bumps: int = 0
+    stalls: int = 0
+    frontiers_out_of_reach: int = 0
+    frontiers_given_up: int = 0
+    distance: float = 0.0
+    log: list[dict[str, Any]] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The counts, rounded, and the log of goals and failures."""
+        out = dict(self.__dict__)
+        for key in ("started", "ended", "distance"):
+            if out[key] is not None:
+                out[key] = round(float(out[key]), 2)
+        return out
+
+
+class FrontierExplorer:
+    """Takes over from a perimeter follower and explores until no reachable frontier is left.
+
+    Call :meth:`step` every tick: it returns ``None`` while the follower
+    should drive, else this tick's ``(v, w)``.
+
+    Parameters
+    ----------
+    maps
+        ``maps()`` gives the robot's current map (an OccupancyMap in the poses' frame) or None.
+    guard
+        The sonar guard that checks each command against this tick's echoes
+        (its ``ahead`` is the stop distance).
+    bumpers
+        The robot's contact switches, (name, from, to) bearings (rad), in the
+        order of the ``bumpers`` fed to :meth:`step`.
+    params, pursuit
+        See :class:`ExploreParams` and :class:`~blocks.navigate.pursuit.PursuitParams`.
+    """
+
+    def __init__(self, maps: MapSource, guard: SonarGuard,
+                 params: ExploreParams | None = None,
+                 pursuit: PursuitParams | None = None,
+                 bumpers: list[tuple[str, float, float]] | None = None) -> None:
+        self.maps = maps
+        self.guard = guard
+        self.bumpers = list(bumpers or [])
+        self.p = params or ExploreParams()
+        self.pursuit = pursuit or PursuitParams()
+        self.result = ExploreResult()
+        self.phase = "follow"  # follow, plan, drive, back_off, spin, escape, turn_away, ended
+        self.grid: NavGrid | None = None
+        self.target: FrontierGoal | None = None
+        self._leg: PurePursuit | None = None
+        self._leg_started = self._progress_time = self._next_look = self._back_until = 0.0
+        self._best = 0.0
+        self._failures = 0
+        self._attempts: list[tuple[tuple[float, float], int]] = []
+        self._forgotten: list[tuple[float, float]] = []  # reached or given up
+        self._given_up: list[tuple[float, float]] = []
+        self._given_up_left = 0
+        self._looks: list[tuple[float, float]] = []  # where it looked round
+        self._spun = self._heading = 0.0
+        self._track: list[tuple[float, float, float]] = []  # time, x, y every 0.1 m
+        self._samples: list[tuple[float, float]] = []  # (distance driven, known area)
+        self._driven = 0.0
+        self._last: np.ndarray | None = None
+        self._commands: list[tuple[float, float, float, float]] = []  # time, x, y, v asked
+        self._command = (0.0, 0.0)  # what this machine asked for last tick
+        self._bumps: list[tuple[float, float]] = []  # what the body touched or the guard heard
+        self._nudged = 0.0
+        self._follower_trouble: list[float] = []
+        self._trouble_spots: list[tuple[float, float]] = []
+        self._escape_until = self._turn_until = 0.0
+        self._escape_speed = self._escape_turn = 0.0
+        self._after_escape = "plan"
+
+    # ---- the machine ---------------------------------------------------------------------
+    @property
+    def active(self) -> bool:
+        """Whether exploration drives (it has taken over and not ended)."""
+        return self.phase not in ("follow", "ended")
+
+    @property
+    def ended(self) -> bool:
+        """Whether exploration has ended (reason in ``result.end_reason``)."""
+        return self.phase == "ended"
+
+    def step(self, time: float, pose: np.ndarray, ranges: np.ndarray, *,
+             follower_done: bool = False, hold: bool = False, preempted: bool = False,
+             bumpers: np.ndarray | None = None,
+             follower_v: float = 0.0) -> tuple[float, float] | None:
+        """This tick's velocities, or None while the follower drives.
+
+        ``hold`` stops the robot (a sign is being read); ``preempted`` says
+        another behaviour drives this tick (a room visit), so the way is
+        planned again afterwards from wherever the robot then is.
+        ``bumpers`` are the contact switches now; ``follower_v`` is what the
+        follower asks for (a stall is a command odometry does not see).
+        """
+        pose = np.asarray(pose, dtype=np.float64)
+        self._remember(time, pose)
+        command = self._decide(time, pose, ranges, follower_done, hold, preempted, bumpers,
+                               follower_v)
+        self._command = command if command is not None else (follower_v, 0.0)
+        return command
+
+    def _decide(self, time: float, pose: np.ndarray, ranges: np.ndarray, follower_done: bool,
+                hold: bool, preempted: bool, bumpers: np.ndarray | None,
+                follower_v: float) -> tuple[float, float] | None:
+        if self.phase == "ended":
+            return None
+        if self.phase in ("escape", "turn_away"):
+            return self._escape(time, pose, ranges, bumpers)
+        trouble = "" if hold or preempted else self._trouble(time, pose, bumpers)
+        if self.phase == "follow":
+            if trouble:
+                return self._follower_trouble_at(time, pose, trouble, follower_done)
+            reason = "loop closed" if follower_done else self._stale(time)
+            if not reason:
+                return None
+            self._take_over(time, reason)
+        if preempted:
+            self._abandon("plan")
+            return 0.0, 0.0
+        if hold:
+            self._progress_time = time  # a pause is not a stall
+            return 0.0, 0.0
+        if trouble and self.phase == "drive":
+            self._failed(time, trouble)
+            return self._start_escape(time, "plan") if self.phase != "ended" else None
+        if self.phase == "back_off":
+            return self._back_off(time, ranges, bumpers)
+        if self.phase == "spin":
+            return self._spin(pose)
+        if self.phase == "plan" and not self._plan(time, pose):
+            return (0.0, 0.0) if self.phase != "ended" else None
+        return self._drive(time, pose, ranges)
+
+    def _take_over(self, time: float, reason: str) -> None:
+        self.phase = "plan"
+        self.result.started, self.result.start_reason = time, reason
+
+    # ---- contact and stalls ---------------------------------------------------------------
+    def _trouble(self, time: float, pose: np.ndarray, bumpers: np.ndarray | None) -> str:
+        """'bumped NAME' or 'stalled' if the robot is touching something or cannot move, else ''."""
+        pressed = [] if bumpers is None else [k for k, on in enumerate(bumpers) if on]
+        if pressed:
+            for k in pressed:
+                self._remember_touch(pose, *self.bumpers[k][1:])
+            self.result.bumps += 1
+            return "bumped " + "+".join(self.bumpers[k][0] for k in pressed)
+        v = self._command[0]
+        self._commands.append((time, float(pose[0]), float(pose[1]), v))
+        while self._commands and self._commands[0][0] < time - self.p.stall_window:
+            self._commands.pop(0)
+        t0, x0, y0, _ = self._commands[0]
+        if (time - t0 >= self.p.stall_window - 1e-9
+                and all(abs(c[3]) >= self.p.stall_speed for c in self._commands)
+                and math.hypot(pose[0] - x0, pose[1] - y0) < self.p.stall_motion):
+            self._commands.clear()
+            self.result.stalls += 1
+            ahead = 1.0 if v > 0 else -1.0
+            reach = self.guard.length / 2 + self.p.bump_memory
+            self._bumps.append((float(pose[0] + ahead * reach * math.cos(pose[2])),
+                                float(pose[1] + ahead * reach * math.sin(pose[2]))))
+            return "stalled"
+        return ""
+
+    def _remember_touch(self, pose: np.ndarray, start: float, end: float) -> None:
+        """Put what a pressed bumper touched on the planning grid: along the body's edge
+        across the bumper's whole span (a switch does not say where along it)."""
+        half_l, half_w = self.guard.length / 2, self.guard.width / 2
+        for bearing in start + np.linspace(0.0, (end - start) % (2 * math.pi), 5):
+            c, s = math.cos(bearing), math.sin(bearing)
+            edge = min(half_l / abs(c) if abs(c) > 1e-9 else math.inf,
+                       half_w / abs(s) if abs(s) > 1e-9 else math.inf)
+            reach = edge + self.p.bump_memory / 2
+            self._bumps.append((float(pose[0] + reach * math.cos(pose[2] + bearing)),
+                                float(pose[1] + reach * math.sin(pose[2] + bearing))))
+
+    def _follower_trouble_at(self, time: float, pose: np.ndarray, why: str,
+                             follower_done: bool) -> tuple[float, float]:
+        """The follower bumped or stalled: escape and hand back, or take over if it keeps on."""
+        here = (float(pose[0]), float(pose[1]))
+        again = self._near(here, self._trouble_spots)  # the same place: a cycle
+        self._trouble_spots.append(here)
+        self._follower_trouble = [t for t in self._follower_trouble
+                                  if t >= time - self.p.follower_bump_window] + [time]
+        self.result.log.append({"t": round(time, 1), "follower": why,
+                                "at": [round(float(v), 2) for v in pose[:2]]})
+        if follower_done or again or len(self._follower_trouble) >= self.p.follower_bumps:
+            self._take_over(time, "loop closed" if follower_done else "follower jammed")
+            return self._start_escape(time, "plan")
+        return self._start_escape(time, "follow")
+
+    def _start_escape(self, time: float, then: str) -> tuple[float, float]:
+        """Back off from what the robot touched (forward if it was behind), then ``then``."""
+        self._leg, self.target = None, None
+        # Undo the motion that got it there: back if it was going ahead, and the turn reversed.
+        v, w = self._command
+        backwards = v >= 0
+        self._escape_speed = -self.p.back_off_speed if backwards else self.p.back_off_speed
+        self._escape_turn = -float(np.clip(w, -self.p.spin_rate, self.p.spin_rate))
+        self._escape_until = time + self.p.back_off_time
+        self._turn_until = self._escape_until + (
+            self.p.escape_turn / self.p.spin_rate if then == "follow" else 0.0)
+        self._after_escape = then
+        self.phase = "escape"
+        return 0.0, 0.0
+
+    def _escape(self, time: float, pose: np.ndarray, ranges: np.ndarray,
+                bumpers: np.ndarray | None) -> tuple[float, float]:
+        if self.phase == "escape":
+            v = self._escape_speed
+            touching = bumpers is not None and any(
+                on and self._faces(k, v) for k, on in enumerate(bumpers))
+            if time < self._escape_until and not touching and not self.guard.blocked(
+                    ranges, v, self._escape_turn):
+                return v, self._escape_turn
+            self.phase = "turn_away"
+        if time < self._turn_until and not self.guard.blocked(ranges, 0.0, self.p.spin_rate):
+            return 0.0, self.p.spin_rate
+        self._commands.clear()
+        self.phase = self._after_escape
+        return 0.0, 0.0
+
+    def _faces(self, k: int, v: float) -> bool:
+        """Whether bumper ``k`` faces the way a motion at speed ``v`` goes."""
+        _, start, end = self.bumpers[k]
+        mid = start + ((end - start) % (2 * math.pi)) / 2
+        return math.cos(mid) * v > 0
+
+    def _remember(self, time: float, pose: np.ndarray) -> None:
+        if self._last is not None:
+            step = float(np.hypot(*(pose[:2] - self._last[:2])))
+            self._driven += step
+            if self.active:
+                self.result.distance += step
+        self._last = pose.copy()
+        if not self._track or math.hypot(pose[0] - self._track[-1][1],
+                                         pose[1] - self._track[-1][2]) >= 0.1:
+            self._track.append((time, float(pose[0]), float(pose[1])))
+
+    def _stale(self, time: float) -> str:
+        """A reason to take over from a follower that brings no new floor, or ''."""
+        if self.p.stale_distance <= 0 or time < self._next_look:
+            return ""
+        self._next_look = time + self.p.replan_every
+        occupancy = self.maps()
+        if occupancy is None:
+            return ""
+        occupied, free, _ = occupancy.classes()
+        known = float(np.count_nonzero(occupied | free)) * occupancy.resolution ** 2
+        self._samples.append((self._driven, known))
+        while len(self._samples) > 1 and \
+                self._driven - self._samples[1][0] >= self.p.stale_distance:
+            self._samples.pop(0)
+        then, before = self._samples[0]
+        if self._driven - then >= self.p.stale_distance and known - before < self.p.stale_gain:
+            return "no new floor"
+        return ""
+
+    # ---- choosing and planning -----------------------------------------------------------
+    def _map(self) -> Any:
+        """The robot's map with the floor under its track free: it stood there.
+
+        Why: no sonar sees the floor under the robot, so its footprint is an
+        unknown hole, which would be a frontier and, grown by the radius,
+        would block the robot's own cell.  Only unknown cells are cleared;
+        a cell the map holds occupied stays so.
+        """
+        occupancy = self.maps()
+        if occupancy is None or not self._track:
+            return occupancy
+        track = np.array([(x, y) for _, x, y in self._track])
+        res = occupancy.resolution
+        k = int(math.ceil(self.p.footprint / res))
+        rows = np.floor((track[:, 1] - occupancy.origin[1]) / res).astype(np.int64)
+        cols = np.floor((track[:, 0] - occupancy.origin[0]) / res).astype(np.int64)
+        h, w = occupancy.shape
+        under = np.zeros((h, w), dtype=bool)
+        for dr in range(-k, k + 1):
+            for dc in range(-k, k + 1):
+                if (dr * dr + dc * dc) * res * res > self.p.footprint ** 2:
+                    continue
+                r, c = rows + dr, cols + dc
+                ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+                under[r[ok], c[ok]] = True
+        _, _, unknown = occupancy.classes()
+        clear = under & unknown
+        touched = self._touched(occupancy)
+        if not clear.any() and touched is None:
+            return occupancy
+        p = np.array(occupancy.occupancy, dtype=np.float64)
+        p[clear] = 0.0
+        if touched is not None:
+            p[touched] = 1.0
+        return replace(occupancy, occupancy=p)
+
+    def _touched(self, occupancy: Any) -> np.ndarray | None:
+        """Cells within ``bump_memory`` of where the body touched something, or None."""
+        if not self._bumps or self.p.bump_memory <= 0:
+            return None
+        res = occupancy.resolution
+        h, w = occupancy.shape
+        mask = np.zeros((h, w), dtype=bool)
+        k = int(math.ceil(self.p.bump_memory / res))
+        for bx, by in self._bumps:
+            r = int(math.floor((by - occupancy.origin[1]) / res))
+            c = int(math.floor((bx - occupancy.origin[0]) / res))
+            mask[max(r - k, 0):max(r + k + 1, 0), max(c - k, 0):max(c + k + 1, 0)] = True
+        return mask
+
+    def _grid(self, occupancy: Any, time: float) -> NavGrid:
+        recent = np.array([(x, y) for t, x, y in self._track if t >= time - self.p.trail_time])
+        grid = inflate(occupancy, radius=self.p.radius)
+        return unblock_traversed(grid, recent) if len(recent) else grid
+
+    def _goals(self, time: float, pose: np.ndarray) -> list[FrontierGoal]:
+        occupancy = self._map()
+        if occupancy is None:
+            return []
+        self.grid = self._grid(occupancy, time)
+        frontiers = find_frontiers(occupancy, min_length=self.p.min_frontier,
+                                   wall_margin=self.p.wall_margin)
+        goals = frontier_goals(self.grid, frontiers, pose[:2], reach=self.p.reach)
+        self.result.frontiers_out_of_reach = len(frontiers) - len(goals)
+        self._given_up_left = sum(self._near(g.goal, self._given_up) for g in goals)
+        goals = [g for g in goals if not self._near(g.goal, self._forgotten)]
+        return sorted(goals, key=lambda g: g.distance - self.p.gain_weight * g.frontier.length)
+
+    def _near(self, xy: tuple[float, float], places: list[tuple[float, float]]) -> bool:
+        return any(math.hypot(xy[0] - fx, xy[1] - fy) < self.p.forget_radius
+                   for fx, fy in places)
+
+    def _plan(self, time: float, pose: np.ndarray) -> bool:
+        """Choose a frontier and plan the way there; False if none (ending if none is left)."""
+        goals = self._goals(time, pose)
+        for goal in goals:
+            try:
+                way = plan(self.grid, pose[:2], goal.goal).points
+            except PlanningError:
+                self._forget(goal.goal)
+                continue
+            self.target = goal
+            self._start_leg(way, time)
+            self.result.log.append({"t": round(time, 1), "goal": [round(v, 2) for v in goal.goal],
+                                    "frontier_m": round(goal.frontier.length, 2)})
+            return True
+        if not self._looked_here(pose):  # a look round first: the map may just be thin here
+            self.phase, self._spun, self._heading = "spin", 0.0, float(pose[2])
+            self._looks.append((float(pose[0]), float(pose[1])))
+            return False
+        self.result.frontiers_given_up = self._given_up_left
+        self._end(time, "explored")
+        return False
+
+    def _looked_here(self, pose: np.ndarray) -> bool:
+        return self._near((float(pose[0]), float(pose[1])), self._looks)
+
+    def _spin(self, pose: np.ndarray) -> tuple[float, float]:
+        """Turn a whole turn on the spot (measured, not timed), then choose again."""
+        self._spun += abs(math.remainder(float(pose[2]) - self._heading, 2 * math.pi))
+        self._heading = float(pose[2])
+        if self._spun >= 2 * math.pi:
+            self.phase = "plan"
+            return 0.0, 0.0
+        return 0.0, self.p.spin_rate
+
+    def _start_leg(self, way: np.ndarray, time: float) -> None:
+        self._nudged = 0.0
+        self._leg = PurePursuit(way, self.pursuit)
+        self.phase = "drive"
+        self._leg_started = self._progress_time = time
+        self._next_look = time + self.p.replan_every
+        self._best = 0.0
+
+    # ---- driving -------------------------------------------------------------------------
+    def _drive(self, time: float, pose: np.ndarray, ranges: np.ndarray) -> tuple[float, float]:
+        leg = self._leg
+        assert leg is not None and self.target is not None
+        v, w, status = leg.step(pose, 0.0)
+        if status == "arrived":
+            self._reached(time)
+            return 0.0, 0.0
+        why = self.guard.blocked(ranges, v, w)
+        if why == "turning":  # too close to something to turn: ease away from it first
+            nudge = self._nudge(ranges)
+            if nudge is not None and self._nudged < self.p.nudge_time:
+                self._nudged += 0.1
+                return nudge
+        if why:
+            if leg.remaining <= self.p.close_enough:  # at the wall the goal is beside
+                self._reached(time)
+                return 0.0, 0.0
+            self.result.blocked_ahead += 1
+            self._remember_blocked(pose, ranges, v)
+            self._failed(time, f"blocked {why}")
+            if self.phase != "ended":  # room to plan round the echo
+                self.phase, self._back_until = "back_off", time + self.p.back_off_time
+            return 0.0, 0.0
+        if leg.progress > self._best + 0.05 or status == "turning":
+            self._best, self._progress_time = max(self._best, leg.progress), time
+        if time - self._progress_time > self.p.stall_time:
+            self._failed(time, "no progress")
+            self.phase = "plan"
+            return 0.0, 0.0
+        if time >= self._next_look:
+            self._next_look = time + self.p.replan_every
+            if not self._target_still_there(time, pose):
+                self._reached(time)
+                return 0.0, 0.0
+        return float(v), float(w)
+
+    def _nudge(self, ranges: np.ndarray) -> tuple[float, float] | None:
+        """A slow straight move away from the nearest echo, if the guard allows it."""
+        points = self.guard.echo_points(ranges)
+        if len(points) == 0:
+            return None
+        nearest = points[int(np.argmin(np.hypot(points[:, 0], points[:, 1])))]
+        v = -self.p.nudge_speed if nearest[0] > 0 else self.p.nudge_speed
+        return None if self.guard.blocked(ranges, v, 0.0) else (v, 0.0)
+
+    def _remember_blocked(self, pose: np.ndarray, ranges: np.ndarray, v: float) -> None:
+        """Put the echo that stopped the robot on the planning grid (the map may have missed it).
+
+        The echo nearest the body on the side it was driving to, in the odometry frame.
+        """
+        points = self.guard.echo_points(ranges)
+        ahead = points[points[:, 0] * (1.0 if v >= 0 else -1.0) > 0]
+        if len(ahead) == 0:
+            return
+        px, py = ahead[int(np.argmin(np.hypot(ahead[:, 0], ahead[:, 1])))]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        self._bumps.append((float(pose[0] + c * px - s * py), float(pose[1] + s * px + c * py)))
+
+    def _target_still_there(self, time: float, pose: np.ndarray) -> bool:
+        """Whether the frontier the robot is heading for is still on the map."""
+        occupancy = self._map()
+        if occupancy is None or self.target is None:
+            return True
+        frontiers = find_frontiers(occupancy, min_length=self.p.min_frontier,
+                                   wall_margin=self.p.wall_margin)
+        gx, gy = self.target.goal
+        return any(np.min(np.hypot(f.points[:, 0] - gx, f.points[:, 1] - gy))
+                   <= self.p.reach + 0.3 for f in frontiers)
+
+    def _back_off(self, time: float, ranges: np.ndarray,
+                  bumpers: np.ndarray | None) -> tuple[float, float]:
+        """Straight back a little, while the guard and the rear bumpers allow, then plan."""
+        v = -self.p.back_off_speed
+        touching = bumpers is not None and any(
+            on and self._faces(k, v) for k, on in enumerate(bumpers))
+        if time >= self._back_until or touching or self.guard.blocked(ranges, v, 0.0):
+            self.phase = "plan"
+            return 0.0, 0.0
+        return v, 0.0
+
+    # ---- outcomes ------------------------------------------------------------------------
+    def _reached(self, time: float) -> None:
+        assert self.target is not None
+        self.result.goals_reached += 1
+        self._failures = 0
+        self._forget(self.target.goal)
+        self._abandon("plan")
+
+    def _failed(self, time: float, why: str) -> None:
+        assert self.target is not None
+        self.result.ways_failed += 1
+        self._failures += 1
+        goal = self.target.goal
+        for k, (xy, count) in enumerate(self._attempts):
+            if math.hypot(xy[0] - goal[0], xy[1] - goal[1]) < self.p.forget_radius:
+                self._attempts[k] = (xy, count + 1)
+                break
+        else:
+            self._attempts.append((goal, 1))
+            count = 0
+        if count + 1 >= self.p.max_attempts:
+            self.result.goals_given_up += 1
+            self._forget(goal)
+            self._given_up.append(goal)
+        self.result.log.append({"t": round(time, 1), "failed": why,
+                                "at": [round(float(v), 2) for v in self._last[:2]]})
+        self._abandon("plan")
+        if self._failures >= self.p.max_failures:
+            self._end(time, "stuck")
+
+    def _forget(self, goal: tuple[float, float]) -> None:
+        self._forgotten.append(goal)
+
+    def _abandon(self, phase: str) -> None:
+        self._leg, self.target = None, None
+        if self.phase != "ended":
+            self.phase = phase
+
+    def _end(self, time: float, reason: str) -> None:
+        self.phase = "ended"
+        self._leg, self.target = None, None
+        self.result.ended, self.result.end_reason = time, reason
+
+    def summary(self, time: float) -> dict[str, Any]:
+        """The result for run.json; an exploration still going ran out of time."""
+        out = self.result.as_dict()
+        if self.phase == "follow":
+            out["end_reason"] = "time budget (perimeter)"
+        elif self.active:
+            out["end_reason"], out["ended"] = "time budget", round(time, 2)
+        return out

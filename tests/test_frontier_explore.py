@@ -1,0 +1,346 @@
+"""Frontier exploration: the frontier finder, goal choice, the explorer's outcomes, and the
+explorer in closed loop on a small ring corridor the perimeter follower would not finish."""
+from __future__ import annotations
+
+import math
+import textwrap
+
+import cv2
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from blocks.explore.explorer import ExploreParams, FrontierExplorer
+from blocks.explore.frontiers import find_frontiers, frontier_goals, frontier_mask
+from blocks.maps.logodds import InverseSonarModel, LogOddsMap
+from blocks.maps.mapio import OccupancyMap
+from blocks.navigate.grid import inflate
+from blocks.navigate.guard import SonarGuard
+from sim2d.robot import load_robot
+from sim2d.simulation import Simulation
+from sim2d.world import load_world
+
+RES = 0.1
+FREE, OCC, UNKNOWN = 0.05, 0.95, 0.5
+
+
+def room_map(opening: bool = True, pocket: bool = False) -> OccupancyMap:
+    """An 8 x 6 m grid: a free 5 x 4 m room (walls mapped) at x 1..6, y 1..5.
+
+    ``opening``: the east wall has a 1.2 m gap to unknown space (a frontier);
+    ``pocket``: a free strip beyond a closed wall at x 6.5..7.5 (seen through
+    it, not reachable), bordering unknown.
+    """
+    h, w = int(6 / RES), int(8 / RES)
+    p = np.full((h, w), UNKNOWN)
+    y, x = np.mgrid[0:h, 0:w]
+    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    inside = (xc > 1.0) & (xc < 6.0) & (yc > 1.0) & (yc < 5.0)
+    p[inside] = FREE
+    wall = ((xc > 0.8) & (xc < 6.2) & (yc > 0.8) & (yc < 5.2)) & ~inside
+    p[wall] = OCC
+    if opening:
+        p[wall & (xc > 6.0) & (yc > 2.4) & (yc < 3.6)] = FREE
+    if pocket:
+        p[(xc > 6.6) & (xc < 7.4) & (yc > 1.0) & (yc < 2.0)] = FREE
+    return OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+
+
+# ---- finding frontiers and goals ---------------------------------------------------------------
+def test_the_opening_is_the_one_frontier_and_its_goal_is_inside_within_reach():
+    m = room_map()
+    [frontier] = find_frontiers(m, min_length=0.6)
+    assert frontier.length == pytest.approx(1.2, abs=0.25)
+    assert frontier.middle[0] == pytest.approx(6.1, abs=0.15)
+    assert frontier.middle[1] == pytest.approx(3.0, abs=0.15)
+    grid = inflate(m, radius=0.36)
+    [goal] = frontier_goals(grid, [frontier], (2.0, 3.0), reach=1.0)
+    gx, gy = goal.goal
+    assert not grid.blocked[grid.world_to_cell(gx, gy)]
+    assert math.hypot(gx - frontier.middle[0], gy - frontier.middle[1]) <= 1.0 + 1e-9
+    assert goal.distance == pytest.approx(math.hypot(gx - 2.05, gy - 3.05), abs=0.1)
+
+
+def test_a_closed_room_has_no_frontier_and_short_runs_are_noise():
+    assert find_frontiers(room_map(opening=False)) == []
+    assert find_frontiers(room_map(), min_length=2.0) == []
+
+
+def test_a_frontier_seen_through_a_wall_has_no_goal():
+    m = room_map(opening=False, pocket=True)
+    frontiers = find_frontiers(m)
+    assert frontiers  # the pocket's edges
+    assert frontier_goals(inflate(m, radius=0.36), frontiers, (2.0, 3.0)) == []
+
+
+def test_frontier_mask_counts_the_grid_edge_as_unknown():
+    free = np.ones((3, 3), dtype=bool)
+    assert frontier_mask(free, ~free).sum() == 8  # every cell but the middle one
+
+
+# ---- the explorer's outcomes, with a point robot -----------------------------------------------
+class PointRobot:
+    """A kinematic unicycle: enough to follow the explorer's commands on a fixed map."""
+
+    def __init__(self, x: float, y: float, theta: float = 0.0) -> None:
+        self.pose = np.array([x, y, theta])
+
+    def move(self, v: float, w: float, dt: float = 0.1) -> None:
+        self.pose[2] += w * dt
+        self.pose[0] += v * dt * math.cos(self.pose[2])
+        self.pose[1] += v * dt * math.sin(self.pose[2])
+
+
+#: A guard with one sonar ahead and one behind.
+GUARD = SonarGuard(np.array([[0.25, 0.0, 0.0], [-0.25, 0.0, math.pi]]))
+CLEAR = np.array([4.0, 4.0])
+
+
+def run(explorer: FrontierExplorer, robot: PointRobot, ticks: int, ranges=CLEAR, **kw):
+    for tick in range(ticks):
+        out = explorer.step(0.1 * tick, robot.pose, ranges, follower_done=True, **kw)
+        if explorer.ended:
+            return tick
+        if out is not None:
+            robot.move(*out)
+    return None
+
+
+def test_it_drives_to_the_opening_and_ends_explored_when_the_frontier_is_seen():
+    state = {"map": room_map()}
+    explorer = FrontierExplorer(lambda: state["map"], GUARD)
+    robot = PointRobot(2.0, 3.0)
+    assert run(explorer, robot, 400) is None or explorer.result.goals_reached
+    # the robot stood near the opening; "seeing" it closes the frontier
+    assert robot.pose[0] > 4.5
+    state["map"] = room_map(opening=False)
+    assert run(explorer, robot, 100) is not None
+    assert explorer.result.end_reason == "explored" and explorer.result.goals_reached >= 1
+    assert explorer.step(100.0, robot.pose, CLEAR) is None  # ended: the follower's commands
+
+
+def test_a_way_blocked_ahead_again_and_again_ends_stuck():
+    # Every way is blocked at once: the robot gets nowhere.
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(max_failures=3, max_attempts=5,
+                                              back_off_time=0.3, bump_memory=0.0))
+    robot = PointRobot(2.0, 3.0)
+    assert run(explorer, robot, 600, ranges=np.array([0.2, 4.0])) is not None
+    r = explorer.result
+    assert r.end_reason == "stuck" and r.blocked_ahead == 3 and r.goals_given_up == 0
+    assert r.log[1]["failed"] == "blocked ahead"
+
+
+def test_a_frontier_whose_way_keeps_failing_is_given_up_and_counted():
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(max_attempts=2, back_off_time=0.3,
+                                              bump_memory=0.0))
+    robot = PointRobot(2.0, 3.0)
+    assert run(explorer, robot, 600, ranges=np.array([0.2, 4.0])) is not None
+    r = explorer.result
+    assert r.end_reason == "explored" and r.goals_given_up == 1 and r.frontiers_given_up == 1
+
+
+def test_hold_stops_the_robot_and_the_follower_drives_until_its_loop_closes():
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(stale_distance=0.0))
+    pose = np.array([2.0, 3.0, 0.0])
+    assert explorer.step(0.0, pose, CLEAR) is None  # the follower's turn
+    assert explorer.step(0.1, pose, CLEAR, follower_done=True, hold=True) == (0.0, 0.0)
+    assert explorer.result.start_reason == "loop closed"
+    v, _ = explorer.step(0.2, pose, CLEAR, follower_done=True)
+    assert explorer.active and explorer.target is not None
+    assert explorer.step(0.3, pose, CLEAR, preempted=True) == (0.0, 0.0)
+    assert explorer.target is None and explorer.phase == "plan"  # planned again afterwards
+
+
+def test_a_follower_that_brings_no_new_floor_is_taken_over():
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(stale_distance=10.0, stale_gain=1.0))
+    robot = PointRobot(2.0, 2.0)
+    took_over = None
+    for tick in range(600):  # circling (as round an island), always on the same mapped floor
+        out = explorer.step(0.1 * tick, robot.pose, CLEAR)
+        if out is not None:
+            took_over = tick
+            break
+        robot.move(0.5, 0.5)
+    assert took_over is not None and explorer.result.start_reason == "no new floor"
+    assert 10.0 <= explorer._driven <= 13.0  # within one look (2 s) after 10 m
+
+
+# ---- closed loop: a ring corridor in the simulator -----------------------------------------------
+def ring_world(tmp_path) -> tuple[object, np.ndarray]:
+    """A ring corridor 2 m wide round a solid 6 x 3 m block (outer 10 x 7 m); its floor."""
+    res = 0.05
+    h, w = int(7.6 / res), int(10.6 / res)
+    img = np.full((h, w), 254, np.uint8)
+    y, x = np.mgrid[0:h, 0:w]
+    xc, yc = (x + 0.5) * res - 0.3, (h - y - 0.5) * res - 0.3  # image row 0 is the top
+    outer = (xc < 0) | (xc > 10) | (yc < 0) | (yc > 7)
+    block = (xc > 2) & (xc < 8) & (yc > 2) & (yc < 5)
+    img[outer | block] = 0
+    cv2.imwrite(str(tmp_path / "ring.png"), img)
+    (tmp_path / "ring.yaml").write_text(textwrap.dedent("""\
+        name: ring
+        doc: A ring corridor round a solid block.
+        image: ring.png
+        resolution: 0.05
+        origin: [-0.3, -0.3, 0.0]
+        negate: 0
+        occupied_thresh: 0.65
+        free_thresh: 0.196
+        start: [1.0, 3.5, 1.5708]
+        signs: []
+    """))
+    # the floor at least 0.2 m from a wall: the sonar draws walls a cone's arc thick
+    free = ndimage.distance_transform_edt(~(outer | block)) * res >= 0.2
+    return load_world(tmp_path / "ring.yaml"), (xc, yc, free)
+
+
+def test_the_explorer_goes_round_a_ring_corridor_without_touching_a_wall(tmp_path):
+    world, (xc, yc, free) = ring_world(tmp_path)
+    spec = load_robot("atrv_mini")
+    sim = Simulation(world, [("r", spec, world.start)], seed=0)
+    robot = sim.robots["r"]
+    mounts = np.asarray(spec.sonar_mounts)
+    grid = LogOddsMap(InverseSonarModel(cone_deg=spec.sonar.cone_deg,
+                                        max_range=spec.sonar.max_range, no_echo_reach=1.0),
+                      resolution=RES)
+
+    def snapshot():
+        p, (ix, iy) = grid.probabilities()
+        return OccupancyMap(p, RES, (ix * RES, iy * RES, 0.0))
+
+    explorer = FrontierExplorer(snapshot, SonarGuard(mounts))
+    for tick in range(6000):
+        ranges, _ = sim.sonar("r")
+        x, y, th = robot.odom
+        c, s = math.cos(th), math.sin(th)
+        grid.add_scan(np.column_stack([x + c * mounts[:, 0] - s * mounts[:, 1],
+                                       y + s * mounts[:, 0] + c * mounts[:, 1],
+                                       th + mounts[:, 2]]), ranges)
+        out = explorer.step(0.1 * tick, robot.odom, ranges, follower_done=True)
+        if explorer.ended:
+            break
+        sim.command("r", *out)
+        sim.step(0.1)
+    assert explorer.result.end_reason == "explored", explorer.result.log[-5:]
+    assert robot.collisions == 0
+    # the whole ring is on the map as free floor (odometry ~ truth over a few minutes)
+    _, mapped_free, _ = snapshot().classes()
+    m = snapshot()
+    cols = np.floor((xc - m.origin[0]) / RES).astype(int)
+    rows = np.floor((yc - m.origin[1]) / RES).astype(int)
+    ok = (rows >= 0) & (rows < m.shape[0]) & (cols >= 0) & (cols < m.shape[1])
+    seen = np.zeros_like(free)
+    seen[ok] = mapped_free[rows[ok], cols[ok]]
+    assert (seen & free).sum() / free.sum() >= 0.85
+    # ...including the far side of the block, which the robot had to drive round to see
+    far = free & (xc > 8.3)
+    assert (seen & far).sum() / far.sum() >= 0.8
+
+
+# ---- the sonar guard -----------------------------------------------------------------------------
+ATRV = load_robot("atrv_mini")
+
+
+def reading(name: str, value: float) -> np.ndarray:
+    ranges = np.full(len(ATRV.sonar_names), 4.0)
+    ranges[ATRV.sonar_names.index(name)] = value
+    return ranges
+
+
+@pytest.mark.parametrize("name, value, v, w, why", [
+    ("Fr1", 0.2, 0.4, 0.0, "ahead"),
+    ("Fr1", 0.2, -0.2, 0.0, ""),  # backing away from it is fine
+    ("Fr1", 0.7, 0.4, 0.0, ""),  # beyond the stop distance
+    ("FrRt1", 0.15, 0.4, 0.0, "ahead"),  # a jamb at the front corner, heard by a side-front sonar
+    ("Bk1", 0.2, -0.2, 0.0, "behind"),
+    ("Rt1", 0.05, 0.0, 1.0, "turning"),  # a wall 5 cm from the side: the corners would hit it
+    ("Rt1", 0.3, 0.0, 1.0, ""),  # clear of the corners' circle
+    ("Rt1", 0.05, 0.4, 0.0, ""),  # driving along the wall beside it is fine
+])
+def test_the_guard_refuses_motions_into_echoes(name, value, v, w, why):
+    guard = SonarGuard(ATRV.sonar_mounts, length=ATRV.length, width=ATRV.width)
+    assert guard.blocked(reading(name, value), v, w) == why
+
+
+def test_readings_without_an_echo_say_nothing():
+    guard = SonarGuard(ATRV.sonar_mounts)
+    assert len(guard.echo_points(np.full(16, 4.0))) == 0
+    assert len(guard.echo_points(reading("Lt1", 1.0))) == guard.arc_samples
+
+
+# ---- bumps and stalls ------------------------------------------------------------------------------
+SPANS = [(name, math.radians(a), math.radians(b)) for name, a, b in
+         [("front", -45, 45), ("left", 45, 135), ("rear", 135, -135), ("right", -135, -45)]]
+FRONT_BUMP = np.array([True, False, False, False])
+NO_BUMP = np.zeros(4, dtype=bool)
+
+
+def test_a_bump_while_driving_fails_the_way_backs_off_and_marks_the_map():
+    explorer = FrontierExplorer(lambda: room_map(), GUARD, bumpers=SPANS)
+    robot = PointRobot(2.0, 3.0)
+    for tick in range(50):  # under way to the opening
+        robot.move(*explorer.step(0.1 * tick, robot.pose, CLEAR, follower_done=True,
+                                  bumpers=NO_BUMP))
+    assert explorer.phase == "drive" and robot.pose[0] > 2.3
+    at = robot.pose.copy()
+    assert explorer.step(5.0, robot.pose, CLEAR, bumpers=FRONT_BUMP) == (0.0, 0.0)
+    assert explorer.phase == "escape" and explorer.result.log[-1]["failed"] == "bumped front"
+    v, w = explorer.step(5.1, robot.pose, CLEAR, bumpers=NO_BUMP)
+    assert v < 0 and abs(w) < 0.1  # undoing the motion that got it there
+    # what the body touched is an obstacle on the map the explorer plans on, ahead of it
+    touched = explorer._map()
+    occupied, _, _ = touched.classes()
+    ahead = at[:2] + 0.37 * np.array([math.cos(at[2]), math.sin(at[2])])
+    r, c = int(ahead[1] / RES), int(ahead[0] / RES)
+    assert occupied[r, c] and not room_map().classes()[0][r, c]
+
+
+def test_a_command_odometry_does_not_see_is_a_stall():
+    explorer = FrontierExplorer(lambda: room_map(), GUARD, bumpers=SPANS)
+    pose = np.array([2.0, 3.0, 0.0])  # jammed: whatever it asks, it does not move
+    results = [explorer.step(0.1 * k, pose, CLEAR, follower_done=True, bumpers=NO_BUMP)
+               for k in range(60)]
+    assert explorer.result.stalls >= 1
+    assert any(e.get("failed") == "stalled" for e in explorer.result.log)
+    assert any(v < 0 for v, _ in results)  # it backed off
+
+
+def test_the_follower_is_backed_off_turned_away_and_taken_over_when_caught_again():
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(stale_distance=0.0), bumpers=SPANS)
+    pose = np.array([2.0, 3.0, 0.0])
+    assert explorer.step(0.0, pose, CLEAR, bumpers=NO_BUMP, follower_v=0.4) is None
+    commands = [explorer.step(0.1, pose, CLEAR, bumpers=FRONT_BUMP, follower_v=0.4)]
+    commands += [explorer.step(0.1 * k, pose, CLEAR, bumpers=NO_BUMP, follower_v=0.4)
+                 for k in range(2, 40)]
+    taken = [c for c in commands if c is not None]
+    assert any(v < 0 for v, _ in taken) and any(w > 0 and v == 0 for v, w in taken)
+    assert commands[-1] is None and explorer.phase == "follow"  # handed back
+    assert explorer.result.started is None
+    # the same place again: the follower is going round in a cycle
+    explorer.step(5.0, pose, CLEAR, bumpers=FRONT_BUMP, follower_v=0.4)
+    assert explorer.result.start_reason == "follower jammed"
+
+
+def test_an_echo_that_stops_the_way_goes_on_the_map_and_the_way_round_is_planned():
+    explorer = FrontierExplorer(lambda: room_map(), GUARD)
+    robot = PointRobot(2.0, 3.0)
+    for tick in range(30):
+        robot.move(*explorer.step(0.1 * tick, robot.pose, CLEAR, follower_done=True))
+    assert explorer.phase == "drive"
+    explorer.step(3.0, robot.pose, np.array([0.2, 4.0]))  # a box 0.2 m ahead of the sonar
+    assert explorer.result.blocked_ahead == 1
+    box = robot.pose[:2] + 0.45 * np.array([math.cos(robot.pose[2]), math.sin(robot.pose[2])])
+    occupied, _, _ = explorer._map().classes()
+    assert occupied[int(box[1] / RES), int(box[0] / RES)]
+    for tick in range(31, 400):  # backs off, plans round the box, and gets to the opening
+        out = explorer.step(0.1 * tick, robot.pose, CLEAR)
+        if explorer.result.goals_reached:
+            break
+        robot.move(*out)
+        assert math.hypot(*(robot.pose[:2] - box)) > 0.3
+    assert explorer.result.goals_reached == 1 and robot.pose[0] > 4.5
