@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from blocks.navigate.grid import NavGrid, inflate, unblock_traversed
+from blocks.navigate.grid import NavGrid, cells_near, inflate, unblock_traversed
 from blocks.navigate.guard import SonarGuard
 from blocks.navigate.planner import PlanningError, plan
 from blocks.navigate.pursuit import PurePursuit, PursuitParams
@@ -429,19 +429,8 @@ class FrontierExplorer:
         if occupancy is None or not self._track:
             return occupancy
         track = np.array([(x, y) for _, x, y in self._track])
-        res = occupancy.resolution
-        k = int(math.ceil(self.p.footprint / res))
-        rows = np.floor((track[:, 1] - occupancy.origin[1]) / res).astype(np.int64)
-        cols = np.floor((track[:, 0] - occupancy.origin[0]) / res).astype(np.int64)
-        h, w = occupancy.shape
-        under = np.zeros((h, w), dtype=bool)
-        for dr in range(-k, k + 1):
-            for dc in range(-k, k + 1):
-                if (dr * dr + dc * dc) * res * res > self.p.footprint ** 2:
-                    continue
-                r, c = rows + dr, cols + dc
-                ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-                under[r[ok], c[ok]] = True
+        under = cells_near(track, self.p.footprint, occupancy.shape, occupancy.resolution,
+                           occupancy.origin)
         _, _, unknown = occupancy.classes()
         clear = under & unknown
         touched = self._touched(occupancy)

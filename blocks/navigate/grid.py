@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["NavGrid", "inflate", "inflate_occupied", "unblock_traversed"]
+__all__ = ["NavGrid", "cells_near", "inflate", "inflate_occupied", "unblock_traversed"]
 
 #: Radius (m) of the circle around the ATRV-Mini's 0.5 x 0.5 m body (0.354), rounded up.
 DEFAULT_RADIUS = 0.36
@@ -292,6 +292,37 @@ def inflate(occupancy_map: Any, *, radius: float = DEFAULT_RADIUS, unknown: str 
                             clearance_weight=clearance_weight, extra_cost=extra)
 
 
+def cells_near(points: np.ndarray, radius: float, shape: tuple[int, int], resolution: float,
+               origin: tuple[float, ...]) -> np.ndarray:
+    """(H, W) bool: the cells whose offset from the cell of some point is within ``radius``.
+
+    Grid conventions as :class:`NavGrid` (row 0 at the lowest y, ``origin`` the
+    lower-left corner of cell [0, 0]); points off the grid mark what of their
+    disk lies on it.
+
+    Examples
+    --------
+    >>> cells_near(np.array([[0.25, 0.25]]), 0.1, (3, 3), 0.1, (0.0, 0.0)).astype(int)
+    array([[0, 0, 0],
+           [0, 0, 1],
+           [0, 1, 1]])
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    k = int(math.ceil(radius / resolution))
+    rows = np.floor((points[:, 1] - origin[1]) / resolution).astype(np.int64)
+    cols = np.floor((points[:, 0] - origin[0]) / resolution).astype(np.int64)
+    h, w = shape
+    mask = np.zeros((h, w), dtype=bool)
+    for dr in range(-k, k + 1):
+        for dc in range(-k, k + 1):
+            if (dr * dr + dc * dc) * resolution ** 2 > radius * radius:
+                continue
+            r, c = rows + dr, cols + dc
+            ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+            mask[r[ok], c[ok]] = True
+    return mask
+
+
 def unblock_traversed(grid: NavGrid, points: np.ndarray, *, width: float | None = None,
                       cost: float | None = None) -> NavGrid:
     """The grid with the cells the robot's centre has been on made passable.
@@ -313,18 +344,8 @@ def unblock_traversed(grid: NavGrid, points: np.ndarray, *, width: float | None 
         dearest free cell's, so the planner keeps to the track only where the
         map leaves no other way.
     """
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     width = 1.5 * grid.resolution if width is None else float(width)
-    k = int(math.ceil(width / grid.resolution))
-    offsets = [(dr, dc) for dr in range(-k, k + 1) for dc in range(-k, k + 1)
-               if (dr * dr + dc * dc) * grid.resolution ** 2 <= width * width]
-    rows, cols = grid.cells_of(points)
-    h, w = grid.shape
-    track = np.zeros(grid.shape, dtype=bool)
-    for dr, dc in offsets:
-        r, c = rows + dr, cols + dc
-        ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        track[r[ok], c[ok]] = True
+    track = cells_near(points, width, grid.shape, grid.resolution, grid.origin)
     opened = track & grid.blocked
     if not opened.any():
         return grid
