@@ -80,7 +80,7 @@ class ExploreParams:
         within ``forget_radius`` of an earlier one, mean it is caught in a
         cycle: exploration takes over ("follower jammed").
     bump_memory
-        Radius (m) of the obstacle a bump puts on the planning grid, where
+        Half-side (m) of the square obstacle a bump puts on the planning grid, where
         the body touched it (what the sonar could not hear stays on the map);
         an echo that stops the robot is put there too.  0 remembers nothing.
     nudge_speed, nudge_time
