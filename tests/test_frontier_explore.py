@@ -344,3 +344,79 @@ def test_an_echo_that_stops_the_way_goes_on_the_map_and_the_way_round_is_planned
         robot.move(*out)
         assert math.hypot(*(robot.pose[:2] - box)) > 0.3
     assert explorer.result.goals_reached == 1 and robot.pose[0] > 4.5
+
+
+def door_map(door: float) -> OccupancyMap:
+    """Two rooms side by side (x 1..5 and 5.2..7.5, y 1..5) through a door ``door`` m wide
+    in the wall between them (centred at y = 3), the second room seen only up to x = 7:
+    its far side is unknown, a frontier 4 m long."""
+    h, w = int(6 / RES), int(9 / RES)
+    p = np.full((h, w), UNKNOWN)
+    y, x = np.mgrid[0:h, 0:w]
+    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    rooms = (yc > 1.0) & (yc < 5.0) & (((xc > 1.0) & (xc < 5.0)) | ((xc > 5.2) & (xc < 7.0)))
+    walls = (yc > 0.8) & (yc < 5.2) & (xc > 0.8) & (xc < 5.2) & ~rooms
+    p[rooms] = FREE
+    p[walls] = OCC
+    p[(xc > 5.0) & (xc < 5.2) & (np.abs(yc - 3.0) < door / 2)] = FREE
+    p[(yc > 0.8) & (yc < 1.0) & (xc > 5.0) & (xc < 7.0)] = OCC
+    p[(yc > 5.0) & (yc < 5.2) & (xc > 5.0) & (xc < 7.0)] = OCC
+    return OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+
+
+def test_a_door_the_grown_grid_closes_is_planned_through_on_the_tight_grid():
+    """A sonar map draws a door narrower than it is; grown by the circumscribed radius
+    the door closes and the room beyond is out of reach.  The explorer plans through it
+    on the grid grown by the body's half-width (and drives through the middle); with the
+    tight grid turned off the frontier is out of reach and the floor "explored"."""
+    m = door_map(0.8)
+    [frontier] = [f for f in find_frontiers(m) if f.middle[0] > 6.5]
+    assert frontier_goals(inflate(m, radius=0.36), [frontier], (2.0, 3.0)) == []  # closed
+    [goal] = frontier_goals(inflate(m, radius=0.28), [frontier], (2.0, 3.0))
+    assert goal.goal[0] > 5.5  # beyond the door
+
+    robot = PointRobot(2.0, 3.0)
+    explorer = FrontierExplorer(lambda: m, GUARD)
+    furthest = 0.0
+    for tick in range(400):
+        out = explorer.step(0.1 * tick, robot.pose, CLEAR, follower_done=True)
+        if explorer.ended or out is None:
+            break
+        robot.move(*out)
+        furthest = max(furthest, robot.pose[0])
+        if 5.0 < robot.pose[0] < 5.2:  # in the door, keeping to its middle
+            assert abs(robot.pose[1] - 3.0) < 0.15
+    assert furthest > 5.5, explorer.result.log
+
+    without = FrontierExplorer(lambda: m, GUARD, ExploreParams(tight_radius=0.0))
+    robot = PointRobot(2.0, 3.0)
+    assert run(without, robot, 400) is not None
+    assert without.result.end_reason == "explored" and robot.pose[0] < 5.0
+    assert without.result.frontiers_out_of_reach >= 1
+
+
+def test_a_turn_on_the_spot_beside_a_felt_wall_end_first_moves_clear_of_it():
+    """The sonar does not hear a thin wall end seen edge on; once a bumper has felt it,
+    a turn on the spot that would sweep a corner into it waits until the robot has
+    eased straight away from it (turning at once hit it again, ten times in a row on
+    a generated office)."""
+    def first_commands(felt: bool) -> list[tuple[float, float]]:
+        explorer = FrontierExplorer(lambda: room_map(), GUARD)
+        robot = PointRobot(2.0, 2.2, math.pi / 2)  # driven north; the goal is east
+        for tick in range(9):  # the track it came by (held: the explorer only watches)
+            explorer.step(0.1 * tick, robot.pose, CLEAR, follower_done=True, hold=True)
+            robot.pose[1] += 0.1
+        if felt:  # what a right bumper pressed here left behind: a touch 0.06 m off its side
+            explorer._bumps.append((2.31, 3.0))
+        out = []
+        for tick in range(10, 50):
+            command = explorer.step(0.1 * tick, robot.pose, CLEAR, follower_done=True)
+            out.append(command)
+            robot.move(*command)
+        return out
+
+    plain = [c for c in first_commands(felt=False) if c != (0.0, 0.0)]
+    assert abs(plain[0][1]) > 0.1 and abs(plain[0][0]) < 0.05  # turns on the spot at once
+    careful = [c for c in first_commands(felt=True) if c != (0.0, 0.0)]
+    assert careful[0] == (0.1, 0.0)  # eases ahead, away from the touch beside it
+    assert any(abs(w) > 0.1 for _, w in careful[1:])  # then turns

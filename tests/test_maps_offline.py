@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from blocks.maps.drift import DriftCorrection, correct_odometry
+from blocks.maps.drift import DriftCorrection, DriftCorrector, correct_odometry
 from blocks.maps.features import (extract_linear_features, merge_features, predict_ranges,
                                   sensor_poses_along)
 from blocks.maps.logodds import InverseSonarModel, LogOddsMap
@@ -182,6 +182,27 @@ def test_drift_correction_pulls_a_drifting_odometry_back_onto_the_walls():
     assert before[-1] > 0.2
     assert after[-1] < 0.5 * before[-1]
     assert after.mean() < 0.5 * before.mean()
+
+
+def test_the_online_corrector_gives_the_offline_poses_chunk_by_chunk():
+    """Online, a chunk's last scan gets the pose the whole-run correction gives it, and
+    the scans before it the pose under the correction known when they arrived (the
+    correction only ever looks back), so an explorer's map drawn on them is the
+    offline map's frame."""
+    truth, odom, ranges, echo = l_corridor_run(0.3, slip_deg=4.0)
+    offline = correct_odometry(odom, ranges, echo, MOUNTS)
+    corrector = DriftCorrector(MOUNTS)
+    chunk = corrector.params.chunk
+    online = np.array([corrector.add(odom[i], ranges[i], echo[i]) for i in range(len(odom))])
+    ends = np.arange(chunk - 1, len(odom), chunk)
+    np.testing.assert_allclose(online[ends], offline[ends], atol=1e-9)
+    # in between, within one chunk's step of the offline pose, and far closer than odometry
+    gap = np.hypot(*(online[:, :2] - offline[:, :2]).T)
+    assert gap.max() < DriftCorrection().max_step * 1.5
+    odometry_error = np.hypot(*(odom[-1, :2] - truth[-1, :2]))
+    online_error = np.hypot(*(online[-1, :2] - truth[-1, :2]))
+    assert online_error < 0.15 * odometry_error, (online_error, odometry_error)
+    assert corrector.walls  # the walls it aligned against, in the corrected frame
 
 
 def _rotated(xy: np.ndarray, angle: float) -> np.ndarray:
@@ -459,3 +480,55 @@ def test_features_drawn_on_their_window_are_those_drawn_on_the_whole_grid(spill)
     np.clip(want, -p.clamp, p.clamp, out=want)
     assert np.array_equal(occupancy, np.where(
         want_seen, log_odds_to_probability(want.astype(np.float64)), np.nan), equal_nan=True)
+
+
+# ---- a corridor that opens into a hall whose far wall is beyond the sonar's range -------
+# The corridor (2.75 m wide) runs east to x = 10 and opens into a hall 3.5 m deep: from
+# inside it the straight-ahead sonars hear nothing, while the oblique ones hear the
+# corridor's walls at their ends and draw arcs across the mouth.
+MOUTH_WALLS = np.array([
+    [0.0, 0.0, 10.0, 0.0, 0.05], [0.0, 2.75, 10.0, 2.75, 0.05], [0.0, 0.0, 0.0, 2.75, 0.05],
+    [10.0, 0.0, 10.0, -5.0, 0.05], [10.0, 2.75, 10.0, 7.75, 0.05],
+    [14.5, -5.0, 14.5, 7.75, 0.05]])
+
+
+def _mouth_map(with_walls: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Occupancy probabilities of the mouth (x 10.1..10.6, y 0.6..2.15) and of the
+    corridor's south wall (x 2..8) after driving up the corridor to 1 m short of its
+    end: the explorer's map, with no-echo readings cleared up to the walls the drift
+    correction knows, or (without) only ``no_echo_reach``."""
+    from blocks.maps.drift import DriftCorrector
+    from blocks.maps.logodds import InverseSonarModel, LogOddsMap, clear_ranges
+
+    model = InverseSonarModel(no_echo_reach=1.0)
+    grid = LogOddsMap(model, resolution=0.1)
+    corrector = DriftCorrector(MOUNTS)
+    rng = np.random.default_rng(3)
+    spec = SonarSpec(specular=True, noise_std=0.01)
+    for k in range(180):
+        pose = np.array([1.0 + 0.045 * k, 1.375, 0.0])
+        sensors = sensor_poses_along(pose[None], MOUNTS)[0]
+        ranges, echo = sonar_readings(sensors, MOUTH_WALLS, spec, rng)
+        corrector.add(pose, ranges, echo)
+        clear = clear_ranges(sensors, ranges, corrector.segments(), model) if with_walls \
+            else None
+        grid.add_scan(sensors, ranges, clear)
+    p, (ix, iy) = grid.probabilities()
+    xs = (np.arange(p.shape[1]) + ix + 0.5) * 0.1
+    ys = (np.arange(p.shape[0]) + iy + 0.5) * 0.1
+    mouth = p[np.ix_((ys > 0.6) & (ys < 2.15), (xs > 10.1) & (xs < 10.6))]
+    wall = p[np.ix_(np.abs(ys) < 0.1, (xs > 2) & (xs < 8))].max(axis=0)
+    return mouth, wall
+
+
+def test_no_echo_readings_clear_to_the_known_walls_so_an_open_mouth_stays_open():
+    """Cleared only 1 m, the silent beams leave the oblique arcs drawn across the mouth
+    of the corridor: a wall where there is none, and the explorer calls the floor
+    explored.  Cleared up to the walls the robot knows (none ahead), the mouth is free,
+    and the corridor's own walls, where a silent beam glances off them, are not crossed."""
+    closed, _ = _mouth_map(with_walls=False)
+    opened, wall = _mouth_map(with_walls=True)
+    assert (closed > 0.65).mean() > 0.1 and (closed < 0.35).mean() < 0.5  # a phantom wall
+    assert (opened < 0.35).mean() > 0.9, (opened < 0.35).mean()
+    assert (opened > 0.65).sum() == 0
+    assert (wall > 0.65).all()

@@ -246,7 +246,11 @@ class FrontierExploration(Block):
     """
 
     inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
-                                 doc="the robot's pose, in the map's frame (odometry)"),
+                                 doc="the robot's pose, in the map's frame (odometry, "
+                                     "or odometry corrected: maps.drift_correction)"),
+              "odometry": Port.array("float64", (3,), unit="m,m,rad", required=False,
+                                     default=None, doc="the raw odometry pose, when 'pose' is "
+                                                       "corrected: stalls are judged on it"),
               "ranges": Port.array("float64", (16,), unit="m", frame="robot",
                                    doc="sonar ranges, in the robot file's order"),
               "map": Port(kind="handle", doc="the robot's map: snapshot() gives an OccupancyMap "
@@ -273,8 +277,10 @@ class FrontierExploration(Block):
                                      "follower's perimeter alone (the paper's exploration)"),
         "robot": Param(str, "atrv_mini", "robot model (sonar mounts and velocity limits)"),
         "radius": Param(float, 0.36, "obstacle inflation of the plans", unit="m", min=0.05),
+        "tight_radius": Param(float, 0.28, "inflation of the plans through doors the first "
+                                           "closes (0: none)", unit="m", min=0.0),
         "cruise": Param(float, 0.45, "speed on the way to a frontier", unit="m/s", min=0.01),
-        "min_frontier": Param(float, 0.6, "ignore frontiers shorter than this", unit="m",
+        "min_frontier": Param(float, 0.8, "ignore frontiers shorter than this", unit="m",
                               min=0.0),
         "reach": Param(float, 1.0, "a frontier's goal is at most this far from it", unit="m",
                        min=0.1),
@@ -314,7 +320,8 @@ class FrontierExploration(Block):
                                       max_speed=limits.max_speed,
                                       max_turn_rate=limits.max_turn_rate,
                                       lookahead=0.5, lookahead_min=0.25, goal_tolerance=0.15)
-        self._params = ExploreParams(radius=self.p.radius, min_frontier=self.p.min_frontier,
+        self._params = ExploreParams(radius=self.p.radius, tight_radius=self.p.tight_radius,
+                                     min_frontier=self.p.min_frontier,
                                      reach=self.p.reach, gain_weight=self.p.gain_weight,
                                      stall_time=self.p.stall_time,
                                      max_failures=self.p.max_failures,
@@ -341,7 +348,8 @@ class FrontierExploration(Block):
 
     def step(self, pose: np.ndarray, ranges: np.ndarray, map: Any,  # noqa: A002
              v_in: float, w_in: float, follower_done: bool = False, hold: bool = False,
-             preempted: bool = False, bumpers: np.ndarray | None = None) -> dict[str, Any]:
+             preempted: bool = False, bumpers: np.ndarray | None = None,
+             odometry: np.ndarray | None = None) -> dict[str, Any]:
         if not self.p.enabled:
             return {"v": float(v_in), "w": float(w_in), "exploring": False,
                     "done": bool(follower_done)}
@@ -354,7 +362,7 @@ class FrontierExploration(Block):
         command = self.explorer.step(self.ctx.time, pose, np.asarray(ranges),
                                      follower_done=bool(follower_done), hold=bool(hold),
                                      preempted=bool(preempted), bumpers=bumpers,
-                                     follower_v=float(v_in))
+                                     follower_v=float(v_in), odometry=odometry)
         done = self.explorer.ended
         if command is None:
             if done:

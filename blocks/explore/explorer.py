@@ -59,6 +59,17 @@ class ExploreParams:
     ----------
     radius
         Obstacle inflation of the planning grid (the robot's circumscribed radius).
+    tight_radius
+        A sonar map draws doors narrower than they are, and the grid grown by
+        ``radius`` closes them.  A frontier whose goal on a grid grown by this
+        much (the body's half-width and a margin) lies nearer to it, by over
+        half of ``reach``, than its goal on the wide grid (beyond a door the
+        wide grid closes) gets that goal and its way on that grid; the
+        clearance cost keeps the way in the middle of the door.  0: never.
+    tight_cost
+        Extra cost of each cell of the tight grid that the wide one blocks, so
+        a way uses them only where it must (in the door), not to cut round
+        the end of a wall closer than the body's corners allow when it turns.
     min_frontier
         Frontiers shorter than this (m) are ignored.
     reach
@@ -117,7 +128,9 @@ class ExploreParams:
     """
 
     radius: float = 0.36
-    min_frontier: float = 0.6
+    tight_radius: float = 0.28
+    tight_cost: float = 20.0
+    min_frontier: float = 0.8
     reach: float = 1.0
     gain_weight: float = 1.0
     replan_every: float = 2.0
@@ -204,7 +217,6 @@ class FrontierExplorer:
         self.pursuit = pursuit or PursuitParams()
         self.result = ExploreResult()
         self.phase = "follow"  # follow, plan, drive, back_off, spin, escape, turn_away, ended
-        self.grid: NavGrid | None = None
         self.target: FrontierGoal | None = None
         self._leg: PurePursuit | None = None
         self._leg_started = self._progress_time = self._next_look = self._back_until = 0.0
@@ -222,6 +234,7 @@ class FrontierExplorer:
         self._last: np.ndarray | None = None
         self._commands: list[tuple[float, float, float, float]] = []  # time, x, y, v asked
         self._command = (0.0, 0.0)  # what this machine asked for last tick
+        self._odometry = np.zeros(3)  # the raw odometry pose of this tick
         self._bumps: list[tuple[float, float]] = []  # what the body touched or the guard heard
         self._nudged = 0.0
         self._follower_trouble: list[float] = []
@@ -243,8 +256,8 @@ class FrontierExplorer:
 
     def step(self, time: float, pose: np.ndarray, ranges: np.ndarray, *,
              follower_done: bool = False, hold: bool = False, preempted: bool = False,
-             bumpers: np.ndarray | None = None,
-             follower_v: float = 0.0) -> tuple[float, float] | None:
+             bumpers: np.ndarray | None = None, follower_v: float = 0.0,
+             odometry: np.ndarray | None = None) -> tuple[float, float] | None:
         """This tick's velocities, or None while the follower drives.
 
         ``hold`` stops the robot (a sign is being read); ``preempted`` says
@@ -252,8 +265,12 @@ class FrontierExplorer:
         planned again afterwards from wherever the robot then is.
         ``bumpers`` are the contact switches now; ``follower_v`` is what the
         follower asks for (a stall is a command odometry does not see).
+        ``odometry`` is the raw odometry pose when ``pose`` is corrected
+        against the map: a stall is judged on it, as a correction can move
+        ``pose`` while the wheels stand still.
         """
         pose = np.asarray(pose, dtype=np.float64)
+        self._odometry = pose if odometry is None else np.asarray(odometry, dtype=np.float64)
         self._remember(time, pose)
         command = self._decide(time, pose, ranges, follower_done, hold, preempted, bumpers,
                                follower_v)
@@ -306,13 +323,14 @@ class FrontierExplorer:
             self.result.bumps += 1
             return "bumped " + "+".join(self.bumpers[k][0] for k in pressed)
         v = self._command[0]
-        self._commands.append((time, float(pose[0]), float(pose[1]), v))
+        odometry = self._odometry
+        self._commands.append((time, float(odometry[0]), float(odometry[1]), v))
         while self._commands and self._commands[0][0] < time - self.p.stall_window:
             self._commands.pop(0)
         t0, x0, y0, _ = self._commands[0]
         if (time - t0 >= self.p.stall_window - 1e-9
                 and all(abs(c[3]) >= self.p.stall_speed for c in self._commands)
-                and math.hypot(pose[0] - x0, pose[1] - y0) < self.p.stall_motion):
+                and math.hypot(odometry[0] - x0, odometry[1] - y0) < self.p.stall_motion):
             self._commands.clear()
             self.result.stalls += 1
             ahead = 1.0 if v > 0 else -1.0
@@ -456,23 +474,49 @@ class FrontierExplorer:
             mask[max(r - k, 0):max(r + k + 1, 0), max(c - k, 0):max(c + k + 1, 0)] = True
         return mask
 
-    def _grid(self, occupancy: Any, time: float) -> NavGrid:
+    def _grid(self, occupancy: Any, time: float, radius: float) -> NavGrid:
         recent = np.array([(x, y) for t, x, y in self._track if t >= time - self.p.trail_time])
-        grid = inflate(occupancy, radius=self.p.radius)
-        return unblock_traversed(grid, recent) if len(recent) else grid
+        grid = inflate(occupancy, radius=radius)
+        grid = unblock_traversed(grid, recent) if len(recent) else grid
+        if radius < self.p.radius:  # the tight grid: its extra cells only where they must be
+            grid.cost[~grid.blocked & (grid.clearance < self.p.radius)] += self.p.tight_cost
+        return grid
 
-    def _goals(self, time: float, pose: np.ndarray) -> list[FrontierGoal]:
+    def _goals(self, time: float, pose: np.ndarray) -> list[tuple[FrontierGoal, NavGrid]]:
+        """The goals to choose from, cheapest first, each with the grid to plan it on."""
         occupancy = self._map()
         if occupancy is None:
             return []
-        self.grid = self._grid(occupancy, time)
+        wide = self._grid(occupancy, time, self.p.radius)
         frontiers = find_frontiers(occupancy, min_length=self.p.min_frontier,
                                    wall_margin=self.p.wall_margin)
-        goals = frontier_goals(self.grid, frontiers, pose[:2], reach=self.p.reach)
+        goals = [(g, wide) for g in frontier_goals(wide, frontiers, pose[:2],
+                                                   reach=self.p.reach)]
+        if self.p.tight_radius > 0 and frontiers:
+            goals = self._through_tight_doors(occupancy, time, pose, frontiers, goals)
         self.result.frontiers_out_of_reach = len(frontiers) - len(goals)
-        self._given_up_left = sum(self._near(g.goal, self._given_up) for g in goals)
-        goals = [g for g in goals if not self._near(g.goal, self._forgotten)]
-        return sorted(goals, key=lambda g: g.distance - self.p.gain_weight * g.frontier.length)
+        self._given_up_left = sum(self._near(g.goal, self._given_up) for g, _ in goals)
+        goals = [(g, grid) for g, grid in goals if not self._near(g.goal, self._forgotten)]
+        return sorted(goals, key=lambda pair: pair[0].distance
+                      - self.p.gain_weight * pair[0].frontier.length)
+
+    def _through_tight_doors(self, occupancy: Any, time: float, pose: np.ndarray,
+                             frontiers: list[Any], goals: list[tuple[FrontierGoal, NavGrid]]
+                             ) -> list[tuple[FrontierGoal, NavGrid]]:
+        """Each frontier's goal on the tight grid where it gets nearer than the wide one's."""
+        tight = self._grid(occupancy, time, self.p.tight_radius)
+        wide = {id(g.frontier): (g, grid) for g, grid in goals}
+
+        def to_middle(g: FrontierGoal) -> float:
+            return math.hypot(g.goal[0] - g.frontier.middle[0], g.goal[1] - g.frontier.middle[1])
+        out = []
+        for g in frontier_goals(tight, frontiers, pose[:2], reach=self.p.reach):
+            known = wide.get(id(g.frontier))
+            if known is None or to_middle(g) < to_middle(known[0]) - self.p.reach / 2:
+                out.append((g, tight))
+            else:
+                out.append(known)
+        return out
 
     def _near(self, xy: tuple[float, float], places: list[tuple[float, float]]) -> bool:
         return any(math.hypot(xy[0] - fx, xy[1] - fy) < self.p.forget_radius
@@ -481,9 +525,9 @@ class FrontierExplorer:
     def _plan(self, time: float, pose: np.ndarray) -> bool:
         """Choose a frontier and plan the way there; False if none (ending if none is left)."""
         goals = self._goals(time, pose)
-        for goal in goals:
+        for goal, grid in goals:
             try:
-                way = plan(self.grid, pose[:2], goal.goal).points
+                way = plan(grid, pose[:2], goal.goal).points
             except PlanningError:
                 self._forget(goal.goal)
                 continue
@@ -529,6 +573,13 @@ class FrontierExplorer:
             self._reached(time)
             return 0.0, 0.0
         why = self.guard.blocked(ranges, v, w)
+        touched = None if why else self._touched_in_sweep(pose, v, w)
+        if touched is not None and self._nudged < self.p.nudge_time:
+            # a wall end the sonar misses, found by touching it, is in the corners' sweep
+            nudge = -self.p.nudge_speed if touched[0] > 0 else self.p.nudge_speed
+            if not self.guard.blocked(ranges, nudge, 0.0):
+                self._nudged += 0.1
+                return nudge, 0.0
         if why == "turning":  # too close to something to turn: ease away from it first
             nudge = self._nudge(ranges)
             if nudge is not None and self._nudged < self.p.nudge_time:
@@ -556,6 +607,26 @@ class FrontierExplorer:
                 self._reached(time)
                 return 0.0, 0.0
         return float(v), float(w)
+
+    def _touched_in_sweep(self, pose: np.ndarray, v: float, w: float) -> np.ndarray | None:
+        """The nearest remembered touch (robot frame) that a sharp turn (on the spot, or
+        on a circle smaller than the corners') would sweep into, or None: the sonar
+        guard cannot hear a thin wall end seen edge on, but the bumpers have felt it,
+        and turning beside it hits it again."""
+        half_l, half_w = self.guard.length / 2, self.guard.width / 2
+        sweep = math.hypot(half_l, half_w) + self.guard.turn_margin
+        # a turn tighter than the corners' circle swings them out sideways
+        if not self._bumps or self.p.bump_memory <= 0 or abs(w) <= 1e-3 \
+                or abs(v) >= sweep * abs(w):
+            return None
+        points = np.array(self._bumps) - pose[:2]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        local = np.column_stack([c * points[:, 0] + s * points[:, 1],
+                                 -s * points[:, 0] + c * points[:, 1]])
+        reach = np.hypot(local[:, 0], local[:, 1])
+        outside = (np.abs(local[:, 0]) > half_l) | (np.abs(local[:, 1]) > half_w)
+        inside = np.flatnonzero(outside & (reach <= sweep))
+        return None if not len(inside) else local[inside[np.argmin(reach[inside])]]
 
     def _nudge(self, ranges: np.ndarray) -> tuple[float, float] | None:
         """A slow straight move away from the nearest echo, if the guard allows it."""

@@ -16,7 +16,7 @@ import numpy as np
 
 from blocks.core import Block, BlockError, Param, Port, RunContext, block
 
-from .logodds import InverseSonarModel, LogOddsMap
+from .logodds import InverseSonarModel, LogOddsMap, clear_ranges
 from .mapio import OccupancyMap, write_map
 from .pathio import write_path_csv
 from .paper import LocalMapper, PaperGlobalMap, SensorMount, free_space_borders
@@ -194,7 +194,11 @@ class LogOddsMapBlock(_MapWriter):
     """
 
     map_name = "probabilistic"
-    inputs = {"ranges": RANGES, "pose": POSE, "truth": TRUTH}
+    inputs = {"ranges": RANGES, "pose": POSE, "truth": TRUTH,
+              "walls": Port(kind="handle", required=False, default=None,
+                            doc="walls known so far (maps.drift_correction's): a reading "
+                                "without an echo then clears up to the nearest one in its "
+                                "cone, or its whole range if there is none")}
     outputs = {"map": MAP_HANDLE}
     params = {
         "robot": ROBOT, "resolution": RESOLUTION, "world": WORLD,
@@ -225,16 +229,26 @@ class LogOddsMapBlock(_MapWriter):
         self.map.clear()
         self._snapshot: OccupancyMap | None = None
 
-    def step(self, ranges: np.ndarray, pose: np.ndarray,
-             truth: np.ndarray | None = None) -> dict[str, Any]:
+    def step(self, ranges: np.ndarray, pose: np.ndarray, truth: np.ndarray | None = None,
+             walls: Any = None) -> dict[str, Any]:
         self.record_truth(truth)
         x, y, theta = (float(v) for v in pose[:3])
         c, s = math.cos(theta), math.sin(theta)
         mx, my, mt = self.mounts[:, 0], self.mounts[:, 1], self.mounts[:, 2]
         sensors = np.column_stack([x + c * mx - s * my, y + s * mx + c * my, theta + mt])
-        self.map.add_scan(sensors, ranges)
+        ranges = np.asarray(ranges, dtype=np.float64)
+        self.map.add_scan(sensors, ranges, None if walls is None
+                          else clear_ranges(sensors, ranges, walls.segments(), self.model))
         self._snapshot = None
         return {"map": self}
+        predicted = np.full(len(silent), np.inf)
+        if len(segments):
+            capsules = np.column_stack([segments, np.zeros(len(segments))])
+            predicted = cone_ranges_near(sensors[silent], capsules,
+                                         math.radians(model.cone_deg) / 2, model.max_range)
+        clear[silent] = np.where(np.isfinite(predicted), predicted - model.arc_thickness / 2,
+                                 model.max_range)
+        return clear
 
     def snapshot(self) -> OccupancyMap | None:
         """The map as it stands (cached until the next scan)."""
@@ -250,6 +264,67 @@ class LogOddsMapBlock(_MapWriter):
         self.report("updates", self.map.updates)
         self.report("tiles", self.map.grid.n_tiles)
         return self.snapshot()
+
+
+@block("maps.drift_correction", category="maps")
+class DriftCorrectionBlock(Block):
+    """Odometry corrected against the walls the sonar has mapped, while the robot drives.
+
+    Odometry alone is metres out after a few hundred metres, and a map drawn
+    on it doubles the walls the robot passes twice: doors close on the plan
+    and seen rooms open phantom frontiers.  This is the offline map's drift
+    correction (:class:`~blocks.maps.drift.DriftCorrector`) run online: every
+    second of scans is aligned with the walls mapped before it, and the
+    correction so far is applied to every pose.  With ``truth`` connected it
+    reports the corrected and the raw odometry's position errors (scoring only).
+    """
+
+    inputs = {"ranges": RANGES, "pose": POSE, "truth": TRUTH}
+    outputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
+                                  doc="the odometry pose corrected against the walls"),
+               "walls": Port(kind="handle", doc="the walls mapped so far: segments() gives "
+                                                "their (F, 4) end points in the corrected "
+                                                "frame")}
+    params = {
+        "robot": ROBOT,
+        "enabled": Param(bool, True, "correct the odometry (false: pass it through)"),
+        "rectilinear": Param(bool, True, "walls meet at right angles, so every straight wall "
+                                         "measures heading (turn off for buildings that have "
+                                         "walls at other angles)"),
+    }
+
+    def setup(self) -> None:
+        spec = _robot(self.p.robot)
+        self.max_range = float(spec.sonar.max_range)
+        self.mounts = np.asarray(spec.sonar_mounts, dtype=np.float64)
+        self.cone_deg = float(spec.sonar.cone_deg)
+
+    def reset(self) -> None:
+        from .drift import DriftCorrection, DriftCorrector
+        self.corrector = DriftCorrector(self.mounts, self.cone_deg,
+                                        DriftCorrection(rectilinear=self.p.rectilinear))
+        self._errors: list[tuple[float, float]] = []
+
+    def step(self, ranges: np.ndarray, pose: np.ndarray,
+             truth: np.ndarray | None = None) -> dict[str, Any]:
+        ranges = np.asarray(ranges, dtype=np.float64)
+        pose = np.asarray(pose, dtype=np.float64)[:3]
+        if not self.p.enabled:
+            out = pose.copy()
+        else:
+            out = self.corrector.add(pose, ranges, ranges < self.max_range - 0.05)
+        if truth is not None:
+            self._errors.append((math.hypot(out[0] - truth[0], out[1] - truth[1]),
+                                 math.hypot(pose[0] - truth[0], pose[1] - truth[1])))
+        return {"pose": out, "walls": self.corrector}
+
+    def finish(self) -> None:
+        if self._errors:
+            corrected, raw = np.array(self._errors).T
+            self.report("error_median_m", round(float(np.median(corrected)), 3))
+            self.report("error_max_m", round(float(corrected.max()), 3))
+            self.report("odometry_error_median_m", round(float(np.median(raw)), 3))
+            self.report("odometry_error_max_m", round(float(raw.max()), 3))
 
 
 @block("maps.process_map", category="maps")

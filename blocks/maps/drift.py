@@ -28,7 +28,7 @@ import numpy as np
 from .features import (LinearFeature, _mergeable, _refit, extract_linear_features, gap_along,
                        moved, sensor_poses_along)
 
-__all__ = ["DriftCorrection", "correct_odometry"]
+__all__ = ["DriftCorrection", "DriftCorrector", "correct_odometry"]
 
 
 @dataclass(frozen=True)
@@ -142,47 +142,131 @@ def correct_odometry(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
     (T, 3) array
         The corrected poses; the first chunk is taken as is (the map frame
         is the start pose's frame).
+
+    See Also
+    --------
+    DriftCorrector : the same correction, one scan at a time, while the robot drives.
     """
-    p = params or DriftCorrection()
+    corrector = DriftCorrector(mounts, cone_deg, params)
     poses = np.asarray(poses, dtype=np.float64)
     out = poses.copy()
-    motion = _RigidMotion()
-    mapped = _MappedWalls()
-    axis = _BuildingAxis(p) if p.rectilinear else None
-    cos_merge = math.cos(math.radians(p.max_angle_deg))
-    for start in range(0, len(poses), p.chunk):
-        part = slice(start, min(start + p.chunk, len(poses)))
-        out[part] = motion.applied(poses[part])
-        local = _local_features(out[part], ranges[part], echo[part], mounts, cone_deg)
-        if axis is not None and local:
-            turn = axis.heading_error(local)
-            if turn is not None:
-                delta = np.array([-p.rectilinear_gain * turn, 0.0, 0.0])
-                local = _move_chunk(motion, delta, poses, out, part, local)
-        if mapped and local:  # measured after the turn
-            delta = _alignment(local, mapped, out[part, :2].mean(axis=0), p)
-            if delta is not None:
-                local = _move_chunk(motion, delta, poses, out, part, local)
-        for f in local:
-            for i in mapped.near(f, cos_merge, 0.1, ends=True):
-                g = mapped.features[i]
-                if _mergeable(g, f, math.radians(p.max_angle_deg), 0.1, 0.3):
-                    mapped.replace(i, _refit(np.vstack([g.points, f.points]), g.normal))
-                    break
-            else:
-                mapped.append(f)
-    out[:, 2] = (out[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    chunk = corrector.params.chunk
+    for start in range(0, len(poses), chunk):
+        part = slice(start, min(start + chunk, len(poses)))
+        out[part] = corrector.add_chunk(poses[part], ranges[part], echo[part])
+    out[:, 2] = _wrapped(out[:, 2])
     return out
 
 
-def _move_chunk(motion: _RigidMotion, delta: np.ndarray, poses: np.ndarray, out: np.ndarray,
-                part: slice, local: list[LinearFeature]) -> list[LinearFeature]:
-    """Add ``delta`` (turn about the chunk's centre, shift) to the correction, re-place the
-    chunk's poses in ``out`` and return its features, which moved rigidly with it."""
-    pivot = out[part, :2].mean(axis=0)
-    r_delta = motion.compose(delta, pivot)
-    out[part] = motion.applied(poses[part])
-    return [moved(f, r_delta, pivot, delta[1:]) for f in local]
+def _wrapped(angle: np.ndarray) -> np.ndarray:
+    return (angle + np.pi) % (2 * np.pi) - np.pi
+
+
+class DriftCorrector:
+    """:func:`correct_odometry` online: scans go in one at a time, corrected poses come out.
+
+    Why: the offline map corrects the whole run at its end, but the explorer
+    plans on a map drawn while it drives, and odometry alone puts a wall it
+    passes twice in two places (metres apart after a few hundred metres),
+    which closes doors on the plan and opens phantom frontiers.  The
+    correction only ever looks back (each chunk is aligned with the walls
+    mapped before it), so online, chunk by chunk, it gives the poses it gives
+    offline: :meth:`add` returns each scan's pose under the correction known
+    so far, and the correction moves once a chunk is complete.
+
+    Parameters
+    ----------
+    mounts
+        (N, 3) sensor mounts on the robot.
+    cone_deg
+        The sonar's cone angle.
+    params
+        :class:`DriftCorrection`.
+    """
+
+    def __init__(self, mounts: np.ndarray, cone_deg: float = 30.0,
+                 params: DriftCorrection | None = None) -> None:
+        self.params = params or DriftCorrection()
+        self.mounts = np.asarray(mounts, dtype=np.float64)
+        self.cone_deg = float(cone_deg)
+        self._motion = _RigidMotion()
+        self._mapped = _MappedWalls()
+        self._axis = _BuildingAxis(self.params) if self.params.rectilinear else None
+        self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._segments: tuple[int, np.ndarray] | None = None
+
+    @property
+    def walls(self) -> list[LinearFeature]:
+        """The walls mapped so far, in the corrected frame."""
+        return list(self._mapped.features)
+
+    def segments(self, min_support: int = 8) -> np.ndarray:
+        """(F, 4) end points x0, y0, x1, y1 of the :attr:`walls` with at least
+        ``min_support`` echoes (the offline map's rule), kept until a chunk adds walls."""
+        if self._segments is None or self._segments[0] != min_support:
+            ends = [[*f.p0, *f.p1] for f in self._mapped.features if f.support >= min_support]
+            self._segments = (min_support, np.array(ends, dtype=np.float64).reshape(-1, 4))
+        return self._segments[1]
+
+    def corrected(self, pose: np.ndarray) -> np.ndarray:
+        """Odometry ``pose`` (x, y, theta) under the correction known so far."""
+        out = self._motion.applied(np.asarray(pose, dtype=np.float64)[None, :3])[0]
+        out[2] = float(_wrapped(out[2]))
+        return out
+
+    def add(self, pose: np.ndarray, ranges: np.ndarray, echo: np.ndarray) -> np.ndarray:
+        """Feed one scan and its odometry pose; returns the pose corrected.
+
+        The scan waits for its chunk to be complete; the pose of a chunk's
+        last scan already has that chunk's correction.
+        """
+        self._pending.append((np.asarray(pose, dtype=np.float64)[:3],
+                              np.asarray(ranges, dtype=np.float64),
+                              np.asarray(echo, dtype=bool)))
+        if len(self._pending) < self.params.chunk:
+            return self.corrected(self._pending[-1][0])
+        poses, scans, echoes = (np.array(a) for a in zip(*self._pending))
+        self._pending.clear()
+        out = self.add_chunk(poses, scans, echoes)[-1]
+        out[2] = float(_wrapped(out[2]))
+        return out
+
+    def add_chunk(self, poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray) -> np.ndarray:
+        """Correct one chunk of scans (poses (C, 3), ranges and echo (C, N)): aligned with
+        the walls mapped before it, which then take in its walls.  Headings are not
+        wrapped."""
+        p = self.params
+        out = self._motion.applied(poses)
+        local = _local_features(out, ranges, echo, self.mounts, self.cone_deg)
+        if self._axis is not None and local:
+            turn = self._axis.heading_error(local)
+            if turn is not None:
+                delta = np.array([-p.rectilinear_gain * turn, 0.0, 0.0])
+                out, local = self._move(delta, poses, out, local)
+        if self._mapped and local:  # measured after the turn
+            delta = _alignment(local, self._mapped, out[:, :2].mean(axis=0), p)
+            if delta is not None:
+                out, local = self._move(delta, poses, out, local)
+        cos_merge = math.cos(math.radians(p.max_angle_deg))
+        for f in local:
+            for i in self._mapped.near(f, cos_merge, 0.1, ends=True):
+                g = self._mapped.features[i]
+                if _mergeable(g, f, math.radians(p.max_angle_deg), 0.1, 0.3):
+                    self._mapped.replace(i, _refit(np.vstack([g.points, f.points]), g.normal))
+                    break
+            else:
+                self._mapped.append(f)
+        if local:
+            self._segments = None
+        return out
+
+    def _move(self, delta: np.ndarray, poses: np.ndarray, out: np.ndarray,
+              local: list[LinearFeature]) -> tuple[np.ndarray, list[LinearFeature]]:
+        """Add ``delta`` (turn about the chunk's centre, shift) to the correction: the
+        chunk's poses re-placed, and its features, which moved rigidly with it."""
+        pivot = out[:, :2].mean(axis=0)
+        r_delta = self._motion.compose(delta, pivot)
+        return self._motion.applied(poses), [moved(f, r_delta, pivot, delta[1:]) for f in local]
 
 
 class _RigidMotion:

@@ -85,6 +85,55 @@ class InverseSonarModel:
         return delta
 
 
+def clear_ranges(sensors: np.ndarray, ranges: np.ndarray, walls: np.ndarray,
+                 model: InverseSonarModel) -> np.ndarray:
+    """How far each reading without an echo clears, given the walls known so far.
+
+    Why: a sonar hears nothing when nothing is in range, and also when its
+    sound glances off a wall (specular loss).  The offline map tells the two
+    apart by the walls it found (:func:`~blocks.maps.offline.reading_model`);
+    online, the walls the drift correction has mapped do the same: a silent
+    beam clears up to the nearest known wall in its cone, or its whole range
+    if there is none.  Cleared only a short way, the silent beams straight
+    out of a corridor's open end leave the arcs that its walls' ends draw
+    across it, and the map shows a wall where the corridor opens.
+
+    Parameters
+    ----------
+    sensors
+        (N, 3) sensor poses in the map frame.
+    ranges
+        (N,) readings (m).
+    walls
+        (F, 4) wall segments x0, y0, x1, y1 in the map frame.
+    model
+        The inverse sonar model (cone, range, arc).
+
+    Returns
+    -------
+    (N,) array
+        The clearing range of each silent reading; NaN for readings with an
+        echo (the model draws them as usual).  Pass it to
+        :meth:`LogOddsMap.add_scan`.
+    """
+    from sim2d.sonar import cone_ranges_near
+
+    ranges = np.asarray(ranges, dtype=np.float64)
+    clear = np.full(len(ranges), np.nan)
+    silent = np.flatnonzero(ranges >= model.max_range - model.max_range_margin)
+    if not len(silent):
+        return clear
+    predicted = np.full(len(silent), np.inf)
+    walls = np.asarray(walls, dtype=np.float64).reshape(-1, 4)
+    if len(walls):
+        capsules = np.column_stack([walls, np.zeros(len(walls))])
+        predicted = cone_ranges_near(np.asarray(sensors, dtype=np.float64)[silent], capsules,
+                                     math.radians(model.cone_deg) / 2, model.max_range)
+    clear[silent] = np.where(np.isfinite(predicted), predicted - model.arc_thickness / 2,
+                             model.max_range)
+    return clear
+
+
 def log_odds_to_probability(log_odds: np.ndarray) -> np.ndarray:
     """p = 1 / (1 + exp(-l)), the occupancy probability of a log-odds value."""
     return 1.0 / (1.0 + np.exp(-log_odds))
@@ -125,6 +174,11 @@ class LogOddsMap:
                              f"({self.model.max_range} m at {resolution} m per cell)")
         self._cones = [self._cone(math.radians(k)) for k in range(360)]
         self._lut = self._lookup_table()
+        # clear-only rows: a reading without an echo that clears up to a given range
+        ranges = np.arange(256) / 2 * resolution
+        self._clear_lut = np.where(ranges[None, :] < ranges[:2 * self._reach + 1, None],
+                                   np.float32(self.model.l_free), np.float32(0.0))
+        self._clear_lut[:, self.OUTSIDE] = 0.0
 
     def _cone(self, heading: float) -> tuple[int, int, np.ndarray]:
         """Range codes (half cells) of the cells in a cone at ``heading``, cropped to it."""
@@ -163,11 +217,14 @@ class LogOddsMap:
         np.add(dest, src, out=dest)
         np.clip(dest, self.model.l_min, self.model.l_max, out=dest)
 
-    def scan_update(self, sensor_poses: np.ndarray, ranges: np.ndarray
-                    ) -> tuple[np.ndarray, tuple[int, int]]:
+    def scan_update(self, sensor_poses: np.ndarray, ranges: np.ndarray,
+                    clear_to: np.ndarray | None = None) -> tuple[np.ndarray, tuple[int, int]]:
         """Log-odds changes of one scan in a local window, and the window's (ix, iy) corner.
 
         ``sensor_poses`` is (N, 3): x, y, heading of each sonar in the map frame.
+        ``clear_to`` (N,), where finite, is how far a reading without an echo
+        clears instead of the model's ``no_echo_reach`` (e.g. up to the nearest
+        known wall in its cone, where its sound may have glanced off).
         """
         res = self.resolution
         ix, iy = self.grid.cell_of(sensor_poses[:, 0], sensor_poses[:, 1])
@@ -177,18 +234,29 @@ class LogOddsMap:
         window = np.zeros((int(iy.max()) - wy0 + n + 1, int(ix.max()) - wx0 + n + 1),
                           dtype=np.float32)
         top = 2 * n
-        for (cx, cy, heading, reading) in zip(ix, iy, sensor_poses[:, 2], ranges):
+        no_echo = self.model.max_range - self.model.max_range_margin
+        if clear_to is None:
+            clear_to = np.full(len(ranges), np.nan)
+        for (cx, cy, heading, reading, clear) in zip(ix, iy, sensor_poses[:, 2], ranges,
+                                                     clear_to):
             dr, dc, codes = self._cones[int(round(math.degrees(heading))) % 360]
-            code = min(int(round(float(reading) / res * 2)), top)
+            if reading >= no_echo and math.isfinite(clear):
+                row = self._clear_lut[min(int(round(max(float(clear), 0.0) / res * 2)), top)]
+            else:
+                row = self._lut[min(int(round(float(reading) / res * 2)), top)]
             r0, c0 = cy - wy0 + dr, cx - wx0 + dc
             h, w = codes.shape
-            window[r0:r0 + h, c0:c0 + w] += self._lut[code][codes]
+            window[r0:r0 + h, c0:c0 + w] += row[codes]
         return window, (wx0, wy0)
 
-    def add_scan(self, sensor_poses: np.ndarray, ranges: np.ndarray) -> None:
-        """One step: every beam of the scan, added to the map in one tile update."""
+    def add_scan(self, sensor_poses: np.ndarray, ranges: np.ndarray,
+                 clear_to: np.ndarray | None = None) -> None:
+        """One step: every beam of the scan, added to the map in one tile update
+        (``clear_to`` as in :meth:`scan_update`)."""
         window, (wx0, wy0) = self.scan_update(np.asarray(sensor_poses, dtype=np.float64),
-                                              np.asarray(ranges, dtype=np.float64))
+                                              np.asarray(ranges, dtype=np.float64),
+                                              None if clear_to is None
+                                              else np.asarray(clear_to, dtype=np.float64))
         self.grid.update(wx0, wy0, window, self._clamped_add, mask=window != 0)
         self.updates += 1
 
