@@ -32,13 +32,23 @@ def run(graph: str, world: str, out: Path, seed: int) -> dict:
     return json.loads((out / "run.json").read_text())["metrics"]
 
 
+def perimeter_end(metrics: dict) -> tuple[float | None, str]:
+    """When and why the perimeter phase ended: its loop closed, or the frontier explorer
+    took over before it did (e.g. "no new floor" on a second lap the drift kept open)."""
+    loop = metrics["follower.loop"]["loop_time_s"]
+    if loop is not None:
+        return loop, "loop closed"
+    explorer = metrics.get("explorer", {})
+    return explorer.get("started"), explorer.get("start_reason", "not ended")
+
+
 def measure(world: str, out: Path, seed: int = 0) -> dict:
     """One world's sign figures (see the module docstring)."""
     with_signs = run("semantic_mapping.yaml", world, out / f"{world}_signs", seed)
     without = run("mapping.yaml", world, out / f"{world}_nosigns", seed)
     signs, seek = with_signs["signs"], with_signs["seek"]
-    t_with = with_signs["follower.loop"]["loop_time_s"]
-    t_without = without["follower.loop"]["loop_time_s"]
+    t_with, how = perimeter_end(with_signs)
+    t_without, _ = perimeter_end(without)
     along = signs.get("signs_along_path", signs["true_signs"])
     return {
         "world": world, "signs_along_path": along, "found": signs["found"],
@@ -48,8 +58,9 @@ def measure(world: str, out: Path, seed: int = 0) -> dict:
         "position_error_max_m": signs["position_error_max"],
         "false_signs": signs["false_positions"] + signs["wrong_text"],
         "stops": seek["stops"], "stopped_time_s": seek["stopped_time_s"],
-        "exploration_s": t_with, "exploration_without_signs_s": t_without,
-        "time_added": t_with / t_without - 1.0 if t_without else float("nan"),
+        "exploration_s": t_with, "perimeter_ended": how,
+        "exploration_without_signs_s": t_without,
+        "time_added": t_with / t_without - 1.0 if t_with and t_without else float("nan"),
         "detector_false_positives": with_signs["detector"].get("false_positives"),
         "detector_frames": with_signs["detector"]["frames"],
     }
@@ -64,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     rows = []
     print("| world | signs along the path | found | read exactly | position error mean / max "
-          "| false signs | stopped | exploration with / without stops |")
+          "| false signs | stopped | perimeter loop with stops and room visits / without |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for world in args.worlds.split(","):
         r = measure(world, args.out, args.seed)
@@ -72,12 +83,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {world} | {r['signs_along_path']} | {r['found']} | {r['read_exactly']} "
               f"({100 * r['read_exactly_share']:.0f} %) | {r['position_error_mean_m']:.2f} / "
               f"{r['position_error_max_m']:.2f} m | {r['false_signs']} | {r['stops']} stops, "
-              f"{r['stopped_time_s']:.1f} s | {r['exploration_s']:.0f} / "
-              f"{r['exploration_without_signs_s']:.0f} s (+{100 * r['time_added']:.0f} %) |",
+              f"{r['stopped_time_s']:.1f} s | {_seconds(r['exploration_s'])} / "
+              f"{_seconds(r['exploration_without_signs_s'])} s "
+              f"(+{100 * r['time_added']:.0f} %){_why(r['perimeter_ended'])} |",
               flush=True)
     if args.json:
         write_results(args.json, {"worlds": rows})
     return 0
+
+
+def _seconds(t: float | None) -> str:
+    return "-" if t is None else f"{t:.0f}"
+
+
+def _why(how: str) -> str:
+    return "" if how == "loop closed" else f", {how}"
 
 
 if __name__ == "__main__":

@@ -277,8 +277,8 @@ class FrontierExploration(Block):
                                      "follower's perimeter alone (the paper's exploration)"),
         "robot": Param(str, "atrv_mini", "robot model (sonar mounts and velocity limits)"),
         "radius": Param(float, 0.36, "obstacle inflation of the plans", unit="m", min=0.05),
-        "tight_radius": Param(float, 0.28, "inflation of the plans through doors the first "
-                                           "closes (0: none)", unit="m", min=0.0),
+        "tight_radius": Param(float, 0.28, "inflation of the plans through doors that "
+                                           "'radius' closes (0: never)", unit="m", min=0.0),
         "cruise": Param(float, 0.45, "speed on the way to a frontier", unit="m/s", min=0.01),
         "min_frontier": Param(float, 0.8, "ignore frontiers shorter than this", unit="m",
                               min=0.0),
