@@ -312,7 +312,8 @@ class DriftCorrectionBlock(Block):
         if not self.p.enabled:
             out = pose.copy()
         else:
-            out = self.corrector.add(pose, ranges, ranges < self.max_range - 0.05)
+            silent = self.max_range - InverseSonarModel.max_range_margin  # the maps' rule
+            out = self.corrector.add(pose, ranges, ranges < silent)
         if truth is not None:
             self._errors.append((math.hypot(out[0] - truth[0], out[1] - truth[1]),
                                  math.hypot(pose[0] - truth[0], pose[1] - truth[1])))
