@@ -122,6 +122,19 @@ def test_match_fixes_confusions_and_spacing(vocab):
     assert fuzzy.text == "LIBRARY" and 0.75 <= fuzzy.score < 1.0
 
 
+@pytest.mark.parametrize("raw, expected", [
+    ("CLASSROOM2", "CLASSROOM 2"),  # spaced-out letters lose the space before the number:
+    ("STORE1", "STORE 1"),  # read as a letter, these were CLASSROOM Z, STORE and LABS
+    ("LAB1", "LAB 1"),
+    ("CLASSRO0M5", "CLASSROOM 5"),
+    ("LAB5", "LAB 5"),  # LABS and LAB 5 both exist: the OCR saw a digit
+    ("STAIR5", "STAIRS"),  # no STAIR {number}: a misread letter
+    ("WARDD", "WARD D"),
+])
+def test_a_glued_digit_is_what_the_vocabulary_makes_of_it(vocab, raw, expected):
+    assert match_vocabulary(raw, vocab).text == expected
+
+
 def test_numbers_are_read_exactly_never_invented(vocab):
     assert match_vocabulary("OFFICE 10", vocab).text == "OFFICE 10"  # not a known OFFICE 101
     assert match_vocabulary("OFFICE 1 1", vocab) is None  # a stray digit: no reading

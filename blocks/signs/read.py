@@ -42,7 +42,7 @@ import numpy as np
 from blocks.core.errors import SemmapError
 from semantic.vocabulary import Vocabulary, load_vocabulary
 
-from .text import MIN_SCORE, Match, best_match, normalise
+from .text import MIN_SCORE, Match, match_reading
 from .types import PLATE_HEIGHT, PLATE_WIDTH, Reading
 
 __all__ = ["OCR_OPTIONS", "VIEWS", "OcrResult", "ReaderError", "SignReader", "bbox_crop",
@@ -370,7 +370,7 @@ class SignReader:
             t0 = time.perf_counter()
             res = self.ocr(crop, detect=name != "line")
             ocr_ms += (time.perf_counter() - t0) * 1e3
-            guess = best_match(normalise(res.text), vocab)
+            guess = match_reading(res.text, vocab)
             matched = guess if guess is not None and guess.score >= self.min_score else None
             confidence = 0.0
             if matched is not None:

@@ -25,7 +25,8 @@ from rapidfuzz import fuzz, process
 
 from semantic.vocabulary import SLOT_TYPES, Pattern, Vocabulary, compact
 
-__all__ = ["MIN_SCORE", "SHORT", "Match", "best_match", "match_vocabulary", "normalise"]
+__all__ = ["MIN_SCORE", "SHORT", "Match", "best_match", "match_reading", "match_vocabulary",
+           "normalise", "readings"]
 
 #: Default acceptance threshold of :func:`match_vocabulary` (a 0..1 similarity).
 MIN_SCORE = 0.75
@@ -68,13 +69,18 @@ class Match:
 
 
 # ---- normalisation --------------------------------------------------------------------------
-def normalise(raw: str) -> str:
+def normalise(raw: str, *, glued_digit: str = "letter") -> str:
     """Clean up an OCR string: upper case, single spaces, no punctuation, look-alikes fixed.
 
     Parameters
     ----------
     raw : str
         What the OCR read, e.g. ``"Off1ce.1O1"``.
+    glued_digit : {"letter", "number"}
+        What one look-alike digit glued to the end of a word is: a misread
+        letter ("STAIR5" -> "STAIRS", the default) or a number whose space
+        was lost ("LAB1" -> "LAB 1"). Only the vocabulary can tell:
+        :func:`match_reading` tries both.
 
     Returns
     -------
@@ -89,7 +95,7 @@ def normalise(raw: str) -> str:
     of letters is a word: its look-alike digits become letters. A word glued
     to a trailing number is split first ("OFFICE1O1" -> "OFFICE 101").
     A single look-alike digit glued to a word is a misread letter
-    ("STAIR5" -> "STAIRS"); "LAB 5" needs its space. Single characters are
+    ("STAIR5" -> "STAIRS") unless ``glued_digit`` says otherwise. Single characters are
     left alone: "WARD 8" may be ward 8 or a misread ward B, and only the
     sign can tell.
     """
@@ -101,11 +107,26 @@ def normalise(raw: str) -> str:
     text = _NOISE.sub(" ", text)
     words = []
     for token in text.split():
-        words.extend(_fix_token(part) for part in _split_glued(token))
+        words.extend(_fix_token(part) for part in _split_glued(token, glued_digit == "number"))
     return " ".join(w for w in words if w)
 
 
-def _split_glued(token: str) -> list[str]:
+def readings(raw: str) -> list[str]:
+    """The normalised texts an OCR string may stand for, the more literal first.
+
+    Plates whose letters are spaced out often lose the space before their
+    number ("CLASSROOM2", "LAB1"); a word misread with a digit for its last
+    letter ("STAIR5") looks the same. Both readings are given, the one that
+    keeps the digit first.
+    """
+    out = []
+    for text in (normalise(raw, glued_digit="number"), normalise(raw)):
+        if text and text not in out:
+            out.append(text)
+    return out
+
+
+def _split_glued(token: str, lone_digit_is_number: bool = False) -> list[str]:
     """Split a word glued to a trailing number: ``OFFICE101`` -> ``[OFFICE, 101]``."""
     if "-" in token:
         return [token]
@@ -121,7 +142,7 @@ def _split_glued(token: str) -> list[str]:
     digits = sum(ch.isdigit() for ch in number)
     if digits * 2 < len(number) or sum(ch.isalpha() for ch in word) < 2:
         return [token]
-    if len(number) == 1 and number in _TO_LETTER:
+    if len(number) == 1 and number in _TO_LETTER and not lone_digit_is_number:
         return [token]  # STAIR5: one look-alike digit glued on is a misread letter, not a number
     return [word, number]
 
@@ -240,6 +261,21 @@ def best_match(text: str, vocabulary: Vocabulary) -> Match | None:
     return best
 
 
+def match_reading(raw: str, vocabulary: Vocabulary) -> Match | None:
+    """The vocabulary text closest to any reading of an OCR string (:func:`readings`).
+
+    The best score wins; on a tie, the reading that keeps a glued digit a
+    digit ("LAB5" on a floor with both "LABS" and "LAB {number}" is "LAB 5":
+    what the OCR saw was a digit).
+    """
+    best: Match | None = None
+    for text in readings(raw):
+        m = best_match(text, vocabulary)
+        if m is not None and (best is None or m.score > best.score):
+            best = m
+    return best
+
+
 def match_vocabulary(text: str, vocabulary: Vocabulary, min_score: float = MIN_SCORE
                      ) -> Match | None:
     """Snap a reading onto the vocabulary, or None when nothing is close enough.
@@ -261,5 +297,5 @@ def match_vocabulary(text: str, vocabulary: Vocabulary, min_score: float = MIN_S
         best score is below ``min_score`` (garbage, an unknown word, a number
         without its words).
     """
-    m = best_match(normalise(text), vocabulary)
+    m = match_reading(text, vocabulary)
     return m if m is not None and m.score >= min_score else None
