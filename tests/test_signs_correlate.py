@@ -251,6 +251,68 @@ def test_correlation_places_a_read_sign_within_0_3_m():
     assert sign["facing"] == pytest.approx(90.0, abs=10.0)
 
 
+def _capture_of(world, sign, robot, zoom=1.0, tick=0):
+    """A capture of ``sign`` from ``robot`` with the head aimed at it (exact corners)."""
+    robot = np.asarray(robot, dtype=np.float64)
+    ax, ay, _ = camera_pose(robot, SPEC, 0.0)
+    pan = math.atan2(sign.y - ay, sign.x - ax) - robot[2]
+    tilt = math.atan2(sign.z - SPEC.mount_z, math.hypot(sign.x - ax, sign.y - ay))
+    cam = camera_pose(robot, SPEC, pan)
+    (seen,) = [v for v in visible_signs(world, cam, tilt, zoom, SPEC) if v["text"] == sign.text]
+    det = PlateDetection(corners=seen["corners"], bbox=seen["bbox"], bearing=0.0, range=0.0,
+                         score=1.0)
+    return Capture(image=np.zeros((SPEC.height, SPEC.width, 3), np.uint8), detection=det,
+                   camera=CameraModel.of(SPEC.width, SPEC.height, SPEC.hfov, zoom, tilt),
+                   robot_pose=robot, pan=pan, tilt=tilt, zoom=zoom, tick=tick, time=tick * 0.1)
+
+
+def _wall_map(y_wall: float, gap: tuple[float, float] | None = None) -> OccupancyMap:
+    """Free floor y < y_wall, a wall 0.1 m thick above it (a door in it at x in ``gap``)."""
+    res = 0.025
+    h, w = int(6 / res), int(10 / res)
+    yc = (np.arange(h) + 0.5) * res
+    xc = (np.arange(w) + 0.5) * res
+    p = np.zeros((h, w))
+    wall = (yc[:, None] >= y_wall) & (yc[:, None] < y_wall + 0.1)
+    if gap is not None:
+        wall = wall & ~((xc[None, :] > gap[0]) & (xc[None, :] < gap[1]))
+    p[wall & np.ones((1, w), bool)] = 1.0
+    p[yc > y_wall + 0.1] = np.nan
+    return OccupancyMap(p, res, (0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("size", [0.45, 1.0, 1.8])
+def test_a_plate_of_unknown_size_is_placed_where_its_ray_meets_the_wall(size):
+    """The image alone places a plate k times the standard size k times too near or far;
+    the wall on the robot's map does not care about its size."""
+    sign = Sign("LAB 3", 5.0, 3.0, -math.pi / 2, width=0.6 * size, height=0.2 * size, z=1.3)
+    world = make_world([[0.0, 3.0, 10.0, 3.0]], signs=[sign])
+    smap = SignMap()
+    for tick, robot in enumerate(((3.5, 1.2, 0.3), (5.6, 1.5, 1.2))):
+        s = sighting_from_capture(_capture_of(world, sign, robot, tick=tick),
+                                  Reading("LAB 3", "LAB 3", 0.9), mount=(SPEC.mount_x, SPEC.mount_y))
+        assert math.hypot(s.x - sign.x, s.y - sign.y) == pytest.approx(
+            abs(size - 1) / size * math.hypot(*(np.array(robot[:2]) - (sign.x, sign.y))), abs=0.2)
+        smap.add(s)
+    assert smap.place_on_walls(_wall_map(3.0)) == 2
+    (placed,) = smap.signs()
+    assert placed["sightings"] == 2
+    assert math.hypot(placed["x"] - sign.x, placed["y"] - sign.y) < 0.1  # the band's middle
+    assert [s.scale for s in smap.sightings] == pytest.approx([size] * 2, rel=0.06)
+    # where the map has no wall within reason (a door the ray passes), the standard size stays
+    smap.place_on_walls(_wall_map(3.0, gap=(0.0, 10.0)))
+    assert [s.scale for s in smap.sightings] == [1.0, 1.0]
+
+
+def test_first_occupied_measures_along_a_ray():
+    m = _wall_map(3.0)  # 0.1 m thick
+    assert m.first_occupied(5.0, 1.0, 0.0, 1.0, 4.0) == pytest.approx((2.0, 2.1), abs=0.025)
+    assert m.first_occupied(5.0, 1.0, 0.6, 0.8, 4.0) == pytest.approx((2.5, 2.625), abs=0.03)
+    assert m.first_occupied(5.0, 1.0, 0.0, 1.0, 1.5) is None  # out of reach
+    assert m.first_occupied(5.0, 1.0, 0.0, -1.0, 4.0) is None  # free, then off the map
+    assert m.first_occupied(-3.0, 1.0, -1.0, 0.0, 4.0) is None  # starts off the map
+
+
 # ---- merging -----------------------------------------------------------------------------
 def _s(text, x, y, facing_deg=90.0, confidence=0.9, rng=2.0, view=0.0, tick=0, robot=None):
     return Sighting(text=text, raw_text=text.lower(), confidence=confidence, x=x, y=y,

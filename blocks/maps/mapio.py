@@ -96,6 +96,33 @@ class OccupancyMap:
             free = p < self.free_thresh
         return occupied, free, ~(occupied | free)
 
+    def first_occupied(self, x: float, y: float, dx: float, dy: float,
+                       max_range: float) -> tuple[float, float] | None:
+        """Where the ray from ``(x, y)`` along the unit direction ``(dx, dy)`` first
+        crosses occupied cells: the distances (m) to the first occupied cell and to
+        the first free or unknown one after it, or None if there is none within
+        ``max_range``.
+
+        The ray is sampled every half cell, so both are within half a cell. A
+        sonar map draws a wall as a band some cells thick; the wall's face is
+        within it.
+        """
+        step = self.resolution / 2
+        s = np.arange(0.0, max_range + step, step)
+        col = np.floor((x + s * dx - self.origin[0]) / self.resolution).astype(int)
+        row = np.floor((y + s * dy - self.origin[1]) / self.resolution).astype(int)
+        h, w = self.shape
+        inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
+        hit = np.zeros(len(s), dtype=bool)
+        with np.errstate(invalid="ignore"):
+            hit[inside] = self.occupancy[row[inside], col[inside]] > self.occupied_thresh
+        first = np.flatnonzero(hit)
+        if not len(first):
+            return None
+        after = np.flatnonzero(~hit[first[0]:])
+        end = s[first[0] + after[0]] if len(after) else s[-1] + step
+        return float(s[first[0]]), float(end)
+
     def cell_centres(self) -> tuple[np.ndarray, np.ndarray]:
         """World coordinates of the cell centres.
 

@@ -266,8 +266,10 @@ class Correlate(Block):
     Each reading is placed from the robot's pose when it was captured, the
     head's pan and tilt and the plate's range; repeated sightings of one
     plate merge, keeping the best reading.  Connect the offline map's handle
-    to ``map`` and the signs are re-placed on its drift-corrected path and
-    drawn on it.  Writes ``DIR/signs.json`` and ``DIR/maps/hybrid.png``; with
+    to ``map`` and the signs are re-placed on its drift-corrected path, each
+    plate where the camera's ray to it meets the map's wall (a plate's size
+    is unknown, so the image alone says only how far a standard plate would
+    be), and drawn on it.  Writes ``DIR/signs.json`` and ``DIR/maps/hybrid.png``; with
     ``world`` set, scores the signs against the world's into run.json (with
     ``truth`` connected, also against the signs the run passed).
 
@@ -289,7 +291,9 @@ class Correlate(Block):
               "min_confidence": Param(float, 0.5, "weaker readings stay out of signs.json",
                                       min=0.0, max=1.0),
               "merge_radius": Param(float, 1.0, "sightings closer than this are one plate",
-                                    unit="m", min=0.0)}
+                                    unit="m", min=0.0),
+              "on_walls": Param(bool, True, "place each plate where its ray meets a wall of "
+                                "the map (its size unknown), not where a standard plate would be")}
 
     def setup(self) -> None:
         spec, _ = _camera_spec(self.p.robot)
@@ -335,6 +339,10 @@ class Correlate(Block):
         corrected = getattr(self._map, "corrected_pose", None)
         if corrected is not None:
             self.signs.replace_poses(corrected)
+        snapshot = getattr(self._map, "snapshot", None)
+        occupancy = snapshot() if snapshot is not None and self.p.on_walls else None
+        if occupancy is not None:
+            self.report("placed_on_walls", self.signs.place_on_walls(occupancy))
         signs = self.signs.signs(min_confidence=self.p.min_confidence)
         self._final = signs
         self.version += 1
