@@ -290,7 +290,8 @@ def test_a_plate_of_unknown_size_is_placed_where_its_ray_meets_the_wall(size):
     smap = SignMap()
     for tick, robot in enumerate(((3.5, 1.2, 0.3), (5.6, 1.5, 1.2))):
         s = sighting_from_capture(_capture_of(world, sign, robot, tick=tick),
-                                  Reading("LAB 3", "LAB 3", 0.9), mount=(SPEC.mount_x, SPEC.mount_y))
+                                  Reading("LAB 3", "LAB 3", 0.9),
+                                  mount=(SPEC.mount_x, SPEC.mount_y))
         assert math.hypot(s.x - sign.x, s.y - sign.y) == pytest.approx(
             abs(size - 1) / size * math.hypot(*(np.array(robot[:2]) - (sign.x, sign.y))), abs=0.2)
         smap.add(s)

@@ -269,8 +269,8 @@ class Correlate(Block):
     to ``map`` and the signs are re-placed on its drift-corrected path, each
     plate where the camera's ray to it meets the map's wall (a plate's size
     is unknown, so the image alone says only how far a standard plate would
-    be), and drawn on it.  Writes ``DIR/signs.json`` and ``DIR/maps/hybrid.png``; with
-    ``world`` set, scores the signs against the world's into run.json (with
+    be), and drawn on it.  Writes ``DIR/signs.json`` and
+    ``DIR/maps/hybrid.png``; with ``world`` set, scores the signs against the world's into run.json (with
     ``truth`` connected, also against the signs the run passed).
 
     The ``signs`` output is this block: ``current()`` gives the signs read so

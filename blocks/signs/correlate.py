@@ -361,9 +361,10 @@ class SignMap:
         a standard plate would be, but a plate of unknown size could be
         anywhere along it. A door sign hangs on a wall, and the robot's map
         has the wall: the plate is where the ray meets it (the middle of the
-        band of occupied cells a sonar map draws a wall as). A wall nearer or farther than ``scales`` times the standard
-        distance is not the plate's (a frame, furniture, or a wall the map
-        missed): that sighting keeps the standard size.
+        band of occupied cells a sonar map draws a wall as). A wall nearer or
+        farther than ``scales`` times the standard distance is not the
+        plate's (a frame, furniture, or a wall the map missed): that sighting
+        keeps the standard size.
 
         Parameters
         ----------

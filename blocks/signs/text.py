@@ -95,8 +95,8 @@ def normalise(raw: str, *, glued_digit: str = "letter") -> str:
     of letters is a word: its look-alike digits become letters. A word glued
     to a trailing number is split first ("OFFICE1O1" -> "OFFICE 101").
     A single look-alike digit glued to a word is a misread letter
-    ("STAIR5" -> "STAIRS") unless ``glued_digit`` says otherwise. Single characters are
-    left alone: "WARD 8" may be ward 8 or a misread ward B, and only the
+    ("STAIR5" -> "STAIRS") unless ``glued_digit`` says otherwise. Single
+    characters are left alone: "WARD 8" may be ward 8 or a misread ward B, and only the
     sign can tell.
     """
     text = unicodedata.normalize("NFKC", str(raw))
