@@ -22,6 +22,7 @@ from .world import World
 
 WALL, ROBOT = 1, 2
 MAX_SUBSTEP = 0.005  # s: at 1 m/s, 5 mm per substep; impacts overlap walls by <= 3 mm
+MIN_BEARING_STEP = 0.01  # m: a shorter odometry step is a rotation (amcl's threshold)
 COLLISION_DEBOUNCE = 0.25  # s without contact before a new contact counts as a new collision
 
 
@@ -186,13 +187,22 @@ class Simulation:
         This is the odometry motion model of Thrun, Burgard and Fox (Probabilistic
         Robotics, 5.4): with zero noise the odometry pose follows the truth exactly.
         Backward motion keeps rot1 small (a skid-steer reverses, it does not spin round).
+        A step shorter than ``MIN_BEARING_STEP`` has no bearing worth the name
+        (a body turning on the spot or jostled against a wall moves a fraction
+        of a millimetre in any direction): it is all rot2, as in ROS ``amcl``'s
+        motion model. Else the bearing, up to a quarter turn either way, would
+        draw rotation noise for a rotation the wheels never made, and a robot
+        jammed in a corner would see its heading wander by tenths of a radian.
         """
         true, prev = robot.pose, robot.last_true
         dx, dy = true[0] - prev[0], true[1] - prev[1]
         trans = math.hypot(dx, dy)
-        rot1 = wrap_angle(math.atan2(dy, dx) - prev[2]) if trans > 1e-9 else 0.0
-        if abs(rot1) > math.pi / 2:  # moving backward
-            trans, rot1 = -trans, wrap_angle(rot1 + math.pi)
+        if trans >= MIN_BEARING_STEP:
+            rot1 = wrap_angle(math.atan2(dy, dx) - prev[2])
+            if abs(rot1) > math.pi / 2:  # moving backward
+                trans, rot1 = -trans, wrap_angle(rot1 + math.pi)
+        else:  # along the heading, signed
+            trans, rot1 = dx * math.cos(prev[2]) + dy * math.sin(prev[2]), 0.0
         rot2 = wrap_angle(true[2] - prev[2] - rot1)
         n = robot.spec.odometry
         rng = robot.rng_odom

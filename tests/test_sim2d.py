@@ -145,6 +145,33 @@ def test_odometry_drifts_with_noise_and_is_exact_without():
         assert error < 0.5  # drift stays plausible over ~8 m
 
 
+def test_a_body_jostled_on_the_spot_keeps_its_odometry_heading():
+    """Millimetre steps in random directions (a body pressed into a corner) are no
+    rotation: the wheels did not turn it, so its odometry heading must not wander."""
+    spec = load_robot("atrv_mini")
+    world = make_world(BOX, thickness=0.1)
+    sim = Simulation(world, [("r", spec, (5.0, 2.0, 0.3))], seed=1)
+    robot = sim.robots["r"]
+    jostle = np.random.default_rng(0)
+    for _ in range(600):  # a minute at 10 Hz
+        angle = jostle.uniform(-math.pi, math.pi)
+        robot.body.position = (5.0 + 0.002 * math.cos(angle), 2.0 + 0.002 * math.sin(angle))
+        sim._odometry(robot)
+    assert abs(math.remainder(robot.odom[2] - 0.3, 2 * math.pi)) < 0.01
+    assert np.hypot(*(robot.odom[:2] - robot.pose[:2])) < 0.05
+
+
+def test_a_slow_creep_backwards_is_measured_backwards():
+    spec = load_robot("atrv_mini")
+    sim = Simulation(make_world(BOX, thickness=0.1), [("r", spec, (5.0, 2.0, 0.0))], seed=1)
+    robot = sim.robots["r"]
+    for k in range(1, 101):  # 5 mm a tick: too short for a bearing
+        robot.body.position = (5.0 - 0.005 * k, 2.0)
+        sim._odometry(robot)
+    assert robot.odom[0] == pytest.approx(4.5, abs=0.02)
+    assert abs(robot.odom[2]) < 0.01
+
+
 def test_same_seed_same_trajectory_different_seed_different_odometry():
     spec = load_robot("atrv_mini")
     world = make_world(BOX, thickness=0.1)
