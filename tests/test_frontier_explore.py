@@ -131,6 +131,21 @@ def test_a_way_blocked_ahead_again_and_again_ends_stuck():
     assert r.log[1]["failed"] == "blocked ahead"
 
 
+def test_ways_that_fail_here_and_there_while_the_robot_gets_about_are_not_stuck():
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(max_failures=3, max_attempts=50,
+                                              back_off_time=0.3, bump_memory=0.0,
+                                              max_retraces=0))
+    robot = PointRobot(2.0, 2.0)
+    spots = [(2.0, 2.0), (4.5, 2.0), (4.5, 4.5), (2.0, 4.5)] * 3
+    for tick in range(600):
+        explorer.step(0.1 * tick, robot.pose, np.array([0.2, 4.0]), follower_done=True)
+        if explorer.ended or explorer.result.ways_failed == len(spots):
+            break
+        robot.pose[:2] = spots[explorer.result.ways_failed]  # it got 2.5 m on each time
+    assert explorer.result.ways_failed == len(spots) and not explorer.ended
+
+
 def test_a_frontier_whose_way_keeps_failing_is_given_up_and_counted():
     explorer = FrontierExplorer(lambda: room_map(), GUARD,
                                 ExploreParams(max_attempts=2, back_off_time=0.3,
@@ -420,3 +435,54 @@ def test_a_turn_on_the_spot_beside_a_felt_wall_end_first_moves_clear_of_it():
     careful = [c for c in first_commands(felt=True) if c != (0.0, 0.0)]
     assert careful[0] == (0.1, 0.0)  # eases ahead, away from the touch beside it
     assert any(abs(w) > 0.1 for _, w in careful[1:])  # then turns
+
+
+@pytest.mark.parametrize("start", [(2.0, 1.5, 0.0), (3.5, 1.4, math.pi / 2), (4.3, 4.6, 0.0)])
+def test_a_door_approached_slantwise_is_lined_up_with_before_it_is_entered(start):
+    """Pure pursuit cuts the corner into a door and crosses it slantwise (10 to 22 degrees
+    here), a jamb under the body's corner; lined up first, it crosses square."""
+    m = door_map(0.8)
+
+    def crossing(params: ExploreParams) -> tuple[float, float]:
+        robot = PointRobot(*start)
+        explorer = FrontierExplorer(lambda: m, GUARD, params)
+        for tick in range(600):
+            out = explorer.step(0.1 * tick, robot.pose, CLEAR, follower_done=True)
+            if explorer.ended or out is None:
+                break
+            robot.move(*out)
+            if robot.pose[0] > 5.0:  # in the door
+                return abs(math.degrees(robot.pose[2])), abs(robot.pose[1] - 3.0)
+        raise AssertionError(f"never reached the door: {explorer.result.log}")
+
+    heading, offset = crossing(ExploreParams())
+    assert heading < 5.0 and offset < 0.05
+    slanted, _ = crossing(ExploreParams(door_narrow=0.0))
+    assert slanted > 2 * heading
+
+
+def test_a_robot_jammed_where_every_way_fails_backs_out_along_its_own_track():
+    """Wedged (every way it plans is blocked at once, three times in the same spot),
+    backing off and planning again keeps it there; it backs out the way it came."""
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(back_off_time=0.0, bump_memory=0.0,
+                                              max_attempts=10))
+    robot = PointRobot(2.0, 1.6, math.pi / 2)
+    for tick in range(15):  # it came north from y = 1.6 (the explorer only watches)
+        explorer.step(0.1 * tick, robot.pose, CLEAR, follower_done=True, hold=True)
+        robot.pose[1] += 0.1
+    jammed_at = robot.pose[:2].copy()
+    blocked = np.array([0.2, 4.0])  # something just ahead, nothing behind
+    commands = []
+    for tick in range(15, 200):
+        out = explorer.step(0.1 * tick, robot.pose, blocked, follower_done=True)
+        commands.append(out)
+        robot.move(*out)
+        if explorer.result.retraces and explorer.phase == "plan":
+            break
+    assert explorer.result.retraces == 1 and explorer.result.ways_failed == 3
+    assert [e for e in explorer.result.log if "retrace" in e]
+    assert any(v < 0 for v, _ in commands)
+    assert jammed_at[1] - robot.pose[1] > 1.0  # backed out south, along the track
+    assert abs(robot.pose[0] - 2.0) < 0.15
+    assert explorer.result.end_reason == ""  # not stuck

@@ -12,9 +12,11 @@ GRAPH = ROOT / "graphs/mapping.yaml"
 
 # Scores of the paper-exact online map measured when it landed (sim2d's specular loss on).
 # Its beams run 4 m through walls wherever an echo is lost, so the numbers are low; they
-# must not get lower.
+# must not get lower.  The corridor's precision was re-measured (0.072 -> 0.052) when sim2d's
+# odometry stopped taking millimetre steps as turns: the run's odometry noise differs since
+# (its worst position error 0.29 m where it was 0.20 m), not the map's code.
 PAPER_FLOOR = {
-    "corridor": {"precision": 0.07, "free_coverage": 0.99},
+    "corridor": {"precision": 0.05, "free_coverage": 0.99},
     "complex": {"precision": 0.025, "recall": 0.04, "f1": 0.03, "free_coverage": 0.99},
 }
 

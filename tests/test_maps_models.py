@@ -201,3 +201,27 @@ def test_log_odds_cone_turns_with_the_heading():
     p, (ix, iy) = lo.probabilities()
     assert p[int(math.floor(1.0 / 0.05)) - iy, 0 - ix] > 0.6  # the wall arc is north
     assert p[0 - iy, int(math.floor(0.5 / 0.05)) - ix] == pytest.approx(0.5)  # east untouched
+
+
+def test_a_far_echo_shares_its_evidence_along_its_arc():
+    shared = InverseSonarModel(shared_arc=0.3)
+    width_at_2m = 2 * 2.0 * math.tan(math.radians(15))
+    assert shared.occupied_evidence(2.0) == pytest.approx(shared.l_occ * 0.3 / width_at_2m)
+    assert shared.occupied_evidence(0.5) == shared.l_occ  # an arc narrower than 0.3 m
+    assert InverseSonarModel().occupied_evidence(2.0) == InverseSonarModel().l_occ
+    with pytest.raises(ValueError, match="shared_arc"):
+        InverseSonarModel(shared_arc=0.0)
+
+
+@pytest.mark.parametrize("shared_arc, doorway_free", [(None, False), (0.3, True)])
+def test_beams_through_a_doorway_open_what_a_jambs_arc_painted(shared_arc, doorway_free):
+    """A jamb 2 m away echoes on an arc a metre wide, across the doorway beside it;
+    as many readings that pass through the doorway from close by must open it
+    again, or the explorer never finds the door."""
+    lo = LogOddsMap(InverseSonarModel(shared_arc=shared_arc), resolution=0.05)
+    for _ in range(6):
+        lo.add_scan(np.array([[0.0, 0.0, 0.0]]), np.array([2.0]))  # the jamb's arc at x = 2
+        lo.add_scan(np.array([[1.2, 0.0, 0.0]]), np.array([3.0]))  # through the doorway
+    p, (ix, iy) = lo.probabilities()
+    doorway = p[0 - iy, int(math.floor(2.0 / 0.05)) - ix]
+    assert (doorway < 0.5) == doorway_free

@@ -277,8 +277,14 @@ class FrontierExploration(Block):
                                      "follower's perimeter alone (the paper's exploration)"),
         "robot": Param(str, "atrv_mini", "robot model (sonar mounts and velocity limits)"),
         "radius": Param(float, 0.36, "obstacle inflation of the plans", unit="m", min=0.05),
-        "tight_radius": Param(float, 0.28, "inflation of the plans through doors that "
-                                           "'radius' closes (0: never)", unit="m", min=0.0),
+        "tight_radius": Param(float, 0.2, "inflation of the plans through doors that "
+                                          "'radius' closes; under the body's half-width, as "
+                                          "a sonar map draws doors narrow (0: never)",
+                              unit="m", min=0.0),
+        "door_narrow": Param(float, 0.45, "a way nearer than this to walls on both sides "
+                                          "passes a doorway: the robot lines up on its axis "
+                                          "in front of it and drives through straight "
+                                          "(0: never)", unit="m", min=0.0),
         "cruise": Param(float, 0.45, "speed on the way to a frontier", unit="m/s", min=0.01),
         "min_frontier": Param(float, 0.8, "ignore frontiers shorter than this", unit="m",
                               min=0.0),
@@ -295,7 +301,8 @@ class FrontierExploration(Block):
                                          "plans (negative: all of it)", unit="s"),
         "stall_time": Param(float, 12.0, "a way with no progress this long fails", unit="s",
                             min=1.0),
-        "max_failures": Param(int, 8, "this many failed ways in a row end it 'stuck'", min=1),
+        "max_failures": Param(int, 8, "this many failed ways in a row, all within 2 m of the "
+                                      "first, end it 'stuck'", min=1),
         "stale_distance": Param(float, 40.0, "take over once the follower drove this far "
                                              "without new floor (0: only after its loop)",
                                 unit="m", min=0.0),
@@ -321,6 +328,7 @@ class FrontierExploration(Block):
                                       max_turn_rate=limits.max_turn_rate,
                                       lookahead=0.5, lookahead_min=0.25, goal_tolerance=0.15)
         self._params = ExploreParams(radius=self.p.radius, tight_radius=self.p.tight_radius,
+                                     door_narrow=self.p.door_narrow,
                                      min_frontier=self.p.min_frontier,
                                      reach=self.p.reach, gain_weight=self.p.gain_weight,
                                      stall_time=self.p.stall_time,

@@ -24,7 +24,12 @@ bumper is pressed or the robot stalls (it asks to move and odometry says it
 does not: it then undoes its last motion for a moment), or when it makes no
 progress along the way.  What stopped it goes on the planning grid, so the
 next way goes round it.  A goal that failed ``max_attempts`` times, or
-was reached, is not chosen again.
+was reached, is not chosen again.  Ways that keep failing in one spot mean
+the robot is wedged there: it backs out along its own track.
+
+A way through a doorway (:mod:`blocks.navigate.doorway`) is driven in three
+legs: to a point in front of the doorway on its axis, a turn to face along
+the axis, and straight through, slowly.
 
 :class:`FrontierExplorer` is a plain state machine fed with poses, sonar
 ranges and a map callback: it is tested without the dataflow engine.
@@ -38,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from blocks.navigate.doorway import Doorway, doorway_legs, find_doorway
 from blocks.navigate.grid import NavGrid, cells_near, inflate, unblock_traversed
 from blocks.navigate.guard import SonarGuard
 from blocks.navigate.planner import PlanningError, plan
@@ -60,12 +66,15 @@ class ExploreParams:
     radius
         Obstacle inflation of the planning grid (the robot's circumscribed radius).
     tight_radius
-        A sonar map draws doors narrower than they are, and the grid grown by
-        ``radius`` closes them.  A frontier whose goal on a grid grown by this
-        much (the body's half-width and a margin) lies nearer to it, by over
-        half of ``reach``, than its goal on the wide grid (beyond a door the
-        wide grid closes) gets that goal and its way on that grid; the
-        clearance cost keeps the way in the middle of the door.  0: never.
+        A sonar map draws doors narrower than they are (a 0.9 m door some
+        0.35 m narrower: each jamb's echoes spread over the cone's width), and
+        the grid grown by ``radius`` closes them.  A frontier whose goal on a
+        grid grown by this much lies nearer to it, by over half of ``reach``,
+        than its goal on the wide grid (beyond a door the wide grid closes)
+        gets that goal and its way on that grid; the clearance cost keeps the
+        way in the middle of the door, and the doorway passage (``door_*``)
+        takes the body through square.  Less than the body's half-width, for
+        the map's sake: 0.28 left every 0.9 m door shut.  0: never.
     tight_cost
         Extra cost of each cell of the tight grid that the wide one blocks, so
         a way uses them only where it must (in the door), not to cut round
@@ -97,6 +106,13 @@ class ExploreParams:
     nudge_speed, nudge_time
         Too close to something to turn on the spot, the robot first eases
         straight away from it at this speed, for at most this long (s) a way.
+    door_narrow, door_approach, door_speed
+        A way that passes nearer than ``door_narrow`` (m) to walls on both
+        sides goes through a doorway (:mod:`blocks.navigate.doorway`): the
+        robot drives to a point up to ``door_approach`` (m) in front of it on
+        its axis, turns to face along the axis, and drives straight through at
+        ``door_speed`` (m/s), its sonar guard's lane no wider than the body
+        (the jambs are beside it, not ahead).  0 turns that off.
     back_off_time, back_off_speed
         After a bump or a stall the robot undoes its last motion this long (s)
         at this speed (m/s), and after an echo blocked its way it backs
@@ -107,8 +123,18 @@ class ExploreParams:
         A goal that failed this many times is not tried again.
     forget_radius
         Goals this close (m) to one reached or given up count as the same goal.
-    max_failures
-        This many failed ways in a row, with no goal reached between, end it ``stuck``.
+    max_failures, stuck_radius
+        This many failed ways in a row, with no goal reached between and all
+        within ``stuck_radius`` (m) of where the first of them failed, end it
+        ``stuck``: ways that fail here and there while the robot covers
+        ground are not a robot that cannot get anywhere.
+    jam_failures, jam_radius, retrace_distance, max_retraces
+        So many failed ways in a row within ``jam_radius`` (m) of each other
+        are a jam (wedged in a doorway, against a wall end): backing off a
+        little and planning again does not free it.  The robot backs out the
+        way it came, along its own track, for ``retrace_distance`` (m): it
+        fitted there.  At most ``max_retraces`` times between goals reached,
+        each counting the ways that failed before it as forgiven.
     stale_distance, stale_gain
         Take over from the follower once it has driven ``stale_distance`` (m)
         while the map gained less than ``stale_gain`` (m^2) of known floor: it
@@ -128,7 +154,7 @@ class ExploreParams:
     """
 
     radius: float = 0.36
-    tight_radius: float = 0.28
+    tight_radius: float = 0.2
     tight_cost: float = 20.0
     min_frontier: float = 0.8
     reach: float = 1.0
@@ -140,6 +166,11 @@ class ExploreParams:
     max_attempts: int = 2
     forget_radius: float = 0.7
     max_failures: int = 8
+    stuck_radius: float = 2.0
+    jam_failures: int = 3
+    jam_radius: float = 0.5
+    retrace_distance: float = 1.5
+    max_retraces: int = 3
     stale_distance: float = 40.0
     stale_gain: float = 2.0
     trail_time: float = math.inf
@@ -156,6 +187,9 @@ class ExploreParams:
     bump_memory: float = 0.12
     nudge_speed: float = 0.1
     nudge_time: float = 2.0
+    door_narrow: float = 0.45
+    door_approach: float = 0.7
+    door_speed: float = 0.2
 
 
 @dataclass
@@ -170,6 +204,8 @@ class ExploreResult:
     goals_given_up: int = 0
     ways_failed: int = 0
     blocked_ahead: int = 0
+    doorways: int = 0
+    retraces: int = 0
     bumps: int = 0
     stalls: int = 0
     frontiers_out_of_reach: int = 0
@@ -216,9 +252,21 @@ class FrontierExplorer:
         self.p = params or ExploreParams()
         self.pursuit = pursuit or PursuitParams()
         self.result = ExploreResult()
-        self.phase = "follow"  # follow, plan, drive, back_off, spin, escape, turn_away, ended
+        # follow, plan, drive, align, back_off, spin, escape, turn_away, ended
+        self.phase = "follow"
         self.target: FrontierGoal | None = None
         self._leg: PurePursuit | None = None
+        self._pending: list[tuple[str, Any]] = []  # legs after this one: a doorway's
+        self._squeeze = False  # this leg goes through a doorway
+        self._align_heading = 0.0
+        self._narrow_guard = replace(guard, side_margin=0.0)
+        self._door_pursuit = replace(self.pursuit, cruise=min(self.p.door_speed,
+                                                             self.pursuit.cruise))
+        self._occupancy: Any = None  # the map the last goals were chosen on
+        self._streak: list[tuple[float, float]] = []  # where the ways failed since a goal
+        self._retraces = 0
+        self._retrace_pending = False
+        self._retrace_until = 0.0
         self._leg_started = self._progress_time = self._next_look = self._back_until = 0.0
         self._best = 0.0
         self._failures = 0
@@ -298,13 +346,21 @@ class FrontierExplorer:
         if hold:
             self._progress_time = time  # a pause is not a stall
             return 0.0, 0.0
-        if trouble and self.phase == "drive":
+        if trouble and self.phase == "retrace":
+            return self._start_escape(time, "plan")
+        if trouble and self.phase in ("drive", "align"):
             self._failed(time, trouble)
             return self._start_escape(time, "plan") if self.phase != "ended" else None
         if self.phase == "back_off":
             return self._back_off(time, ranges, bumpers)
         if self.phase == "spin":
             return self._spin(pose)
+        if self.phase == "align":
+            return self._align(time, pose, ranges)
+        if self.phase == "plan" and self._retrace_pending:
+            self._start_retrace(time, pose)
+        if self.phase == "retrace":
+            return self._retrace(time, pose, ranges)
         if self.phase == "plan" and not self._plan(time, pose):
             return (0.0, 0.0) if self.phase != "ended" else None
         return self._drive(time, pose, ranges)
@@ -370,6 +426,7 @@ class FrontierExplorer:
     def _start_escape(self, time: float, then: str) -> tuple[float, float]:
         """Back off from what the robot touched (forward if it was behind), then ``then``."""
         self._leg, self.target = None, None
+        self._pending, self._squeeze = [], False
         # Undo the motion that got it there: back if it was going ahead, and the turn reversed.
         v, w = self._command
         backwards = v >= 0
@@ -485,6 +542,7 @@ class FrontierExplorer:
     def _goals(self, time: float, pose: np.ndarray) -> list[tuple[FrontierGoal, NavGrid]]:
         """The goals to choose from, cheapest first, each with the grid to plan it on."""
         occupancy = self._map()
+        self._occupancy = occupancy
         if occupancy is None:
             return []
         wide = self._grid(occupancy, time, self.p.radius)
@@ -532,7 +590,7 @@ class FrontierExplorer:
                 self._forget(goal.goal)
                 continue
             self.target = goal
-            self._start_leg(way, time)
+            self._start_way(way, grid, time)
             self.result.log.append({"t": round(time, 1), "goal": [round(v, 2) for v in goal.goal],
                                     "frontier_m": round(goal.frontier.length, 2)})
             return True
@@ -556,9 +614,70 @@ class FrontierExplorer:
             return 0.0, 0.0
         return 0.0, self.p.spin_rate
 
-    def _start_leg(self, way: np.ndarray, time: float) -> None:
+    def _start_way(self, way: np.ndarray, grid: NavGrid, time: float) -> None:
+        """Drive ``way``; through its first doorway in three legs: up to the point in
+        front of it, a turn to face along its axis, and straight through."""
+        self._pending = []
+        door = self._doorway(way, grid)
+        if door is None:
+            self._start_leg(way, time)
+            return
+        door_way, before, after = door
+        self.result.doorways += 1
+        try:
+            to_door = plan(grid, way[0], before).points
+        except PlanningError:
+            self._start_leg(way, time)
+            return
+        # the rest of the way from where the doorway's leg leaves it
+        s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(way, axis=0).T))]
+        rest = way[s > door_way.at + float(np.hypot(*(after - np.asarray(door_way.centre))))]
+        self._pending = [("align", math.atan2(door_way.axis[1], door_way.axis[0])),
+                         ("door", np.vstack([before, after])),
+                         ("leg", np.vstack([after, rest]) if len(rest) else
+                          np.vstack([after, way[-1]]))]
+        self._start_leg(to_door, time)
+
+    def _doorway(self, way: np.ndarray, grid: NavGrid
+                 ) -> tuple[Doorway, np.ndarray, np.ndarray] | None:
+        """The way's first doorway and the points in front of and behind it, or None."""
+        if self.p.door_narrow <= 0 or self._occupancy is None:
+            return None
+        occupied, _, _ = self._occupancy.classes()
+        door = find_doorway(occupied, self._occupancy.resolution, self._occupancy.origin, way,
+                            narrow=self.p.door_narrow, skip=self.p.door_approach / 2)
+        if door is None:
+            return None
+        ends = doorway_legs(grid, door, approach=self.p.door_approach)
+        return None if ends is None else (door, ends[0], ends[1])
+
+    def _next_leg(self, time: float) -> bool:
+        """Start the way's next leg; False if there is none."""
+        if not self._pending:
+            return False
+        kind, data = self._pending.pop(0)
+        if kind == "align":
+            self.phase, self._align_heading = "align", float(data)
+            self._leg = None
+            self._progress_time = time
+        else:
+            self._start_leg(data, time, squeeze=kind == "door")
+        return True
+
+    def _align(self, time: float, pose: np.ndarray, ranges: np.ndarray) -> tuple[float, float]:
+        """Turn on the spot to face along the doorway's axis, then drive through it."""
+        error = math.remainder(self._align_heading - float(pose[2]), 2 * math.pi)
+        w = float(np.clip(2.0 * error, -self.p.spin_rate, self.p.spin_rate))
+        if abs(error) < 0.05 or time - self._progress_time > self.p.stall_time \
+                or self.guard.blocked(ranges, 0.0, w):
+            self._next_leg(time)  # facing it (or as near as the guard lets it turn)
+            return 0.0, 0.0
+        return 0.0, w
+
+    def _start_leg(self, way: np.ndarray, time: float, squeeze: bool = False) -> None:
         self._nudged = 0.0
-        self._leg = PurePursuit(way, self.pursuit)
+        self._squeeze = squeeze
+        self._leg = PurePursuit(way, self._door_pursuit if squeeze else self.pursuit)
         self.phase = "drive"
         self._leg_started = self._progress_time = time
         self._next_look = time + self.p.replan_every
@@ -570,9 +689,11 @@ class FrontierExplorer:
         assert leg is not None and self.target is not None
         v, w, status = leg.step(pose, 0.0)
         if status == "arrived":
-            self._reached(time)
+            if not self._next_leg(time):
+                self._reached(time)
             return 0.0, 0.0
-        why = self.guard.blocked(ranges, v, w)
+        guard = self._narrow_guard if self._squeeze else self.guard
+        why = guard.blocked(ranges, v, w)
         touched = None if why else self._touched_in_sweep(pose, v, w)
         if touched is not None and self._nudged < self.p.nudge_time:
             # a wall end the sonar misses, found by touching it, is in the corners' sweep
@@ -586,8 +707,8 @@ class FrontierExplorer:
                 self._nudged += 0.1
                 return nudge
         if why:
-            if leg.remaining <= self.p.close_enough:  # at the wall the goal is beside
-                self._reached(time)
+            if leg.remaining <= self.p.close_enough and not self._pending:
+                self._reached(time)  # at the wall the goal is beside
                 return 0.0, 0.0
             self.result.blocked_ahead += 1
             self._remember_blocked(pose, ranges, v)
@@ -676,7 +797,8 @@ class FrontierExplorer:
     def _reached(self, time: float) -> None:
         assert self.target is not None
         self.result.goals_reached += 1
-        self._failures = 0
+        self._failures = self._retraces = 0
+        self._streak.clear()
         self._forget(self.target.goal)
         self._abandon("plan")
 
@@ -699,20 +821,77 @@ class FrontierExplorer:
         self.result.log.append({"t": round(time, 1), "failed": why,
                                 "at": [round(float(v), 2) for v in self._last[:2]]})
         self._abandon("plan")
+        here = (float(self._last[0]), float(self._last[1]))
+        if self._streak and math.hypot(here[0] - self._streak[0][0],
+                                       here[1] - self._streak[0][1]) > self.p.stuck_radius:
+            self._failures, self._streak = 1, []  # it got somewhere since: a new count
+        self._streak.append(here)
         if self._failures >= self.p.max_failures:
             self._end(time, "stuck")
+        elif self._jammed():
+            self._retrace_pending = True
+
+    # ---- jams ----------------------------------------------------------------------------
+    def _jammed(self) -> bool:
+        """The last ``jam_failures`` ways all failed within ``jam_radius`` of one another,
+        and a retrace is left."""
+        recent = self._streak[-self.p.jam_failures:]
+        if self._retraces >= self.p.max_retraces or len(recent) < self.p.jam_failures:
+            return False
+        xy = np.array(recent)
+        return bool(np.all(np.hypot(*(xy - xy.mean(axis=0)).T) <= self.p.jam_radius))
+
+    def _start_retrace(self, time: float, pose: np.ndarray) -> None:
+        """Back out along the robot's own track, up to ``retrace_distance`` of it."""
+        self._retrace_pending = False
+        back = np.array([(x, y) for _, x, y in reversed(self._track)])
+        # from where it was before it got wedged: past the track's wriggles in the jam
+        away = np.flatnonzero(np.hypot(*(back - pose[:2]).T) > self.p.jam_radius)
+        back = back[away[0]:] if len(away) else back[:0]
+        steps = np.hypot(*np.diff(back, axis=0).T) if len(back) > 1 else np.zeros(0)
+        s = np.r_[0.0, np.cumsum(steps)]
+        back = back[:int(np.searchsorted(s, self.p.retrace_distance)) + 1]
+        length = float(s[len(back) - 1]) if len(back) else 0.0
+        if len(back) < 2 or length < 0.3:
+            return
+        length += float(np.hypot(*(back[0] - pose[:2])))
+        self._retraces += 1
+        self.result.retraces += 1
+        self._leg = PurePursuit(np.vstack([pose[:2], back]),
+                                replace(self._door_pursuit, turn_in_place=math.radians(100.0)))
+        self.phase = "retrace"
+        self._retrace_until = time + 4.0 * self.p.retrace_distance / self.p.door_speed
+        self.result.log.append({"t": round(time, 1), "retrace": round(length, 2),
+                                "at": [round(float(v), 2) for v in pose[:2]]})
+
+    def _retrace(self, time: float, pose: np.ndarray, ranges: np.ndarray) -> tuple[float, float]:
+        """Drive the track backwards (pursuit of it with the robot's rear as its front)."""
+        assert self._leg is not None
+        rear = np.array([pose[0], pose[1], pose[2] + math.pi])
+        v, w, status = self._leg.step(rear, 0.0)
+        v = -v
+        if status == "arrived" or time > self._retrace_until \
+                or self.guard.blocked(ranges, v, w):
+            self._leg = None
+            self._failures = 0  # it got out (or as far as the track lets it)
+            self._streak.clear()
+            self.phase = "plan"
+            return 0.0, 0.0
+        return float(v), float(w)
 
     def _forget(self, goal: tuple[float, float]) -> None:
         self._forgotten.append(goal)
 
     def _abandon(self, phase: str) -> None:
         self._leg, self.target = None, None
+        self._pending, self._squeeze = [], False
         if self.phase != "ended":
             self.phase = phase
 
     def _end(self, time: float, reason: str) -> None:
         self.phase = "ended"
         self._leg, self.target = None, None
+        self._pending = []
         self.result.ended, self.result.end_reason = time, reason
 
     def summary(self, time: float) -> dict[str, Any]:

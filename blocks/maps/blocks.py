@@ -210,6 +210,10 @@ class LogOddsMapBlock(_MapWriter):
         "no_echo_reach": Param(float, -1.0, "how far a reading without an echo clears, "
                                             "short against specular losses through walls "
                                             "(negative: the sonar's whole range)", unit="m"),
+        "shared_arc": Param(float, -1.0, "width of arc one echo's l_occ covers: a wider "
+                                         "(farther) arc gives each cell its share, so the "
+                                         "jambs' arcs do not paint doorways shut (negative: "
+                                         "every arc cell gets all of l_occ)", unit="m"),
     }
 
     def setup(self) -> None:
@@ -221,7 +225,9 @@ class LogOddsMapBlock(_MapWriter):
                                        arc_thickness=self.p.arc_thickness,
                                        l_min=-self.p.clamp, l_max=self.p.clamp,
                                        no_echo_reach=(None if self.p.no_echo_reach < 0
-                                                      else self.p.no_echo_reach))
+                                                      else self.p.no_echo_reach),
+                                       shared_arc=(None if self.p.shared_arc <= 0
+                                                   else self.p.shared_arc))
         self.map = LogOddsMap(self.model, resolution=self.p.resolution)  # tables built once
 
     def reset(self) -> None:

@@ -47,6 +47,13 @@ class InverseSonarModel:
         A sonar also hears nothing when its sound glances off a wall
         (specular loss), and then clearing the whole range draws free floor
         through that wall; an explorer planning on the map needs a short reach.
+    shared_arc
+        Width (m) of arc that one echo's ``l_occ`` covers; None: every cell
+        of the arc gets all of it.  The echo came from somewhere on the arc,
+        not from all of it, so a wider arc (a farther echo) adds
+        ``l_occ * shared_arc / width`` to each of its cells.  Else the arcs a
+        door's jambs echo from across a room paint the doorway shut, and the
+        few beams that pass through it from close by never open it again.
     """
 
     cone_deg: float = 30.0
@@ -58,6 +65,7 @@ class InverseSonarModel:
     l_min: float = -4.0
     l_max: float = 4.0
     no_echo_reach: float | None = None
+    shared_arc: float | None = None
 
     def __post_init__(self) -> None:
         if not 0 < self.cone_deg < 180:
@@ -70,6 +78,15 @@ class InverseSonarModel:
             raise ValueError("l_min must be negative and l_max positive")
         if self.no_echo_reach is not None and self.no_echo_reach < 0:
             raise ValueError(f"no_echo_reach must be >= 0, got {self.no_echo_reach}")
+        if self.shared_arc is not None and not self.shared_arc > 0:
+            raise ValueError(f"shared_arc must be > 0, got {self.shared_arc}")
+
+    def occupied_evidence(self, reading: float) -> float:
+        """Log-odds each arc cell of an echo at ``reading`` (m) gets (see ``shared_arc``)."""
+        if self.shared_arc is None:
+            return self.l_occ
+        width = 2.0 * reading * math.tan(math.radians(self.cone_deg) / 2)
+        return self.l_occ * min(1.0, self.shared_arc / max(width, 1e-9))
 
     def beam_update(self, rho: np.ndarray, in_cone: np.ndarray, reading: float) -> np.ndarray:
         """Log-odds change for cells at range ``rho`` (m), ``in_cone`` of a beam reading ``reading``."""
@@ -81,7 +98,7 @@ class InverseSonarModel:
         delta = np.where(in_cone & (rho < reach - (half_arc if echo else 0.0)),
                          np.float32(self.l_free), np.float32(0.0))
         if echo:
-            delta[in_cone & (np.abs(rho - reading) <= half_arc)] = self.l_occ
+            delta[in_cone & (np.abs(rho - reading) <= half_arc)] = self.occupied_evidence(reading)
         return delta
 
 
