@@ -641,6 +641,13 @@ def attach_signs(pm: PlaceMap, signs: Iterable[Mapping[str, Any]], *, max_door_d
     Step 2 looks behind the door rather than requiring the door to touch the
     place in front, so a corridor split in two near the sign does not matter.
 
+    Two signs with different texts cannot name one place.  When they claim
+    the same one, a sign that found its door (step 2) beats one that looked
+    through the wall (step 3), then the nearer door wins; the loser names
+    nothing.  Why: a room whose door the map lacks can show through the wall
+    behind its plate as the room next door (on a drifted map, a metre off),
+    and that room's own sign, beside its own door, is the better witness.
+
     Parameters
     ----------
     pm
@@ -655,12 +662,12 @@ def attach_signs(pm: PlaceMap, signs: Iterable[Mapping[str, Any]], *, max_door_d
     dict
         Sign index -> place id (or None), for every sign.
     """
-    out: dict[int, str | None] = {}
+    signs = list(signs)
+    claims: dict[int, tuple[str, int, float]] = {}  # sign -> (place, step, door distance)
     for i, s in enumerate(signs):
         x, y = float(s["x"]), float(s["y"])
         f = math.radians(float(s.get("facing", float("nan"))))
         if not math.isfinite(f):
-            out[i] = None
             continue
         nx_, ny_ = math.cos(f), math.sin(f)
         front = _first_place(pm, x, y, nx_, ny_, (0.3, 0.5, 0.7, 1.0))
@@ -675,12 +682,24 @@ def attach_signs(pm: PlaceMap, signs: Iterable[Mapping[str, Any]], *, max_door_d
                 room = d.other(front) if front in (d.a, d.b) else None
             if room is not None and dist < best_d:
                 best, best_d = room, dist
-        if best is None:
-            best = _first_place(pm, x, y, -nx_, -ny_, (0.4, 0.6, 0.8, 1.0))
-            if best == front:
-                best = None
-        out[i] = best
+        if best is not None:
+            claims[i] = (best, 2, best_d)
+            continue
+        behind = _first_place(pm, x, y, -nx_, -ny_, (0.4, 0.6, 0.8, 1.0))
+        if behind is not None and behind != front:
+            claims[i] = (behind, 3, float("inf"))
+    out: dict[int, str | None] = {i: None for i in range(len(signs))}
+    for i, (place, step, dist) in claims.items():
+        text = _text(signs[i])
+        rivals = [(s, d) for j, (p, s, d) in claims.items()
+                  if p == place and _text(signs[j]) != text]
+        if all((step, dist) < rival for rival in rivals):
+            out[i] = place
     return out
+
+
+def _text(sign: Mapping[str, Any]) -> str:
+    return " ".join(str(sign.get("text", "")).split()).upper()
 
 
 def _first_place(pm: PlaceMap, x: float, y: float, dx: float, dy: float,

@@ -120,6 +120,22 @@ def test_synthetic_two_rooms_and_a_corridor():
     assert attach_signs(pm, signs) == {0: a, 1: None}
 
 
+def test_a_sign_beside_its_door_beats_one_that_looks_through_the_wall():
+    """The office's ELEVATOR plate, its own door unmapped, once named the STAIRS room
+    next door through the wall, and the STAIRS sign, beside its door, lost its room."""
+    pm = segment_places(two_rooms_and_corridor())
+    a = pm.place_at(3, 2)
+    beside_door = {"x": 3.8, "y": 4.0, "facing": 90.0, "text": "A"}  # door A 0.8 m away
+    through_wall = {"x": 4.8, "y": 4.0, "facing": 90.0, "text": "OTHER"}  # door A 1.8 m away
+    for signs in ([through_wall, beside_door], [beside_door, through_wall]):
+        k = signs.index(beside_door)
+        assert attach_signs(pm, signs, max_door_distance=1.5) == {k: a, 1 - k: None}
+        assert attach_signs(pm, signs) == {k: a, 1 - k: None}  # both by the door: the nearer
+    # two plates of one room (its two sightings, or a sign on each door) both name it
+    twin = dict(through_wall, text="a")
+    assert attach_signs(pm, [beside_door, twin], max_door_distance=1.5) == {0: a, 1: a}
+
+
 def test_a_wide_opening_does_not_split():
     m = two_rooms_and_corridor()
     occ = m.occupancy
