@@ -114,6 +114,11 @@ class WorldBlock(Block):
         collisions = {r.name: r.collisions for r in self.sim.robots.values()}
         self.report("collisions", sum(collisions.values()))
         self.report("collisions_by_robot", collisions)
+        # where and when, for telling which behaviour drove into what (scoring only)
+        self.report("collision_log", [
+            {"robot": r.name, "t": round(t, 2), "at": [round(x, 2), round(y, 2)],
+             "contact": [round(cx, 2), round(cy, 2)]}
+            for r in self.sim.robots.values() for t, x, y, cx, cy in r.collision_log])
         self.report("world", self.world.source or self.world.name)
         self.report("robots", [{"name": name, "model": spec.name, "length": spec.length,
                                 "width": spec.width} for name, spec, _ in self._robots])

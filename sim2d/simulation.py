@@ -50,6 +50,7 @@ class RobotState:
     odom: np.ndarray = field(default_factory=lambda: np.zeros(3))
     last_true: np.ndarray = field(default_factory=lambda: np.zeros(3))
     collisions: int = 0
+    collision_log: list = field(default_factory=list)  # (time, x, y, contact x, contact y)
     in_contact: int = 0
     last_contact_time: float = -1e9
     rng_odom: np.random.Generator | None = None
@@ -138,6 +139,9 @@ class Simulation:
             if robot.in_contact == 0 and self.physics_time - robot.last_contact_time \
                     >= COLLISION_DEBOUNCE:
                 robot.collisions += 1
+                points = arbiter.contact_point_set.points
+                at = points[0].point_a if points else robot.body.position
+                robot.collision_log.append((self.physics_time, *robot.body.position, *at))
             robot.in_contact += 1
             robot.last_contact_time = self.physics_time
 

@@ -107,6 +107,11 @@ def test_full_speed_into_wall_no_penetration_one_collision(heading):
     assert robot.collisions == 1
     x, y, _ = robot.pose
     assert 0.0 < x < 10.0 and 0.0 < y < 4.0  # still inside the room
+    # the log says when and where: ahead of the body, on the wall it drove into
+    [(t, bx, by, cx, cy)] = robot.collision_log
+    assert 0.0 < t < 15.0
+    assert math.hypot(cx - bx, cy - by) <= math.hypot(spec.length, spec.width) / 2 + 0.01
+    assert (cx - bx) * math.cos(heading) + (cy - by) * math.sin(heading) > 0
 
 
 def test_penetration_probe_detects_overlap():
