@@ -272,7 +272,7 @@ def test_the_visitor_ignores_a_sign_it_already_knows():
 def test_hold_pauses_and_disabled_passes_through():
     b = make_block(enabled=False)
     out = b.step(np.zeros(3), np.full(16, 4.0), 0.4, -0.1, done_in=True)
-    assert out == {"v": 0.4, "w": -0.1, "visiting": False, "done": True}
+    assert out == {"v": 0.4, "w": -0.1, "visiting": False, "done": True, "look_at": None}
     b = make_block()
     out = b.step(np.zeros(3), np.full(16, 4.0), 0.4, -0.1, hold=True)
     assert out["v"] == 0.4 and not out["visiting"]  # no visit: the explorer (and its stop) rule

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import dataclasses
 import math
 
 import cv2
@@ -303,6 +304,27 @@ def test_a_plate_of_unknown_size_is_placed_where_its_ray_meets_the_wall(size):
     # where the map has no wall within reason (a door the ray passes), the standard size stays
     smap.place_on_walls(_wall_map(3.0, gap=(0.0, 10.0)))
     assert [s.scale for s in smap.sightings] == [1.0, 1.0]
+
+
+def test_the_size_the_seeker_measured_places_the_plate_until_a_wall_does():
+    """A capture carries the size the views on the way measured: the live sign is placed
+    with it (room visits look for its door there), and where the map has no wall for it
+    at the end, it keeps that size rather than the standard one."""
+    size = 0.6
+    sign = Sign("LAB 3", 5.0, 3.0, -math.pi / 2, width=0.6 * size, height=0.2 * size, z=1.3)
+    world = make_world([[0.0, 3.0, 10.0, 3.0]], signs=[sign])
+    capture = _capture_of(world, sign, (3.5, 1.2, 0.3))
+    standard = sighting_from_capture(capture, Reading("LAB 3", "LAB 3", 0.9),
+                                     mount=(SPEC.mount_x, SPEC.mount_y))
+    assert math.hypot(standard.x - sign.x, standard.y - sign.y) > 1.0
+    sized = sighting_from_capture(dataclasses.replace(capture, scale=size), Reading("LAB 3", "LAB 3", 0.9),
+                                  mount=(SPEC.mount_x, SPEC.mount_y))
+    assert math.hypot(sized.x - sign.x, sized.y - sign.y) < 0.1
+    smap = SignMap()
+    smap.add(sized)
+    smap.place_on_walls(_wall_map(3.0, gap=(0.0, 10.0)))  # no wall: the measured size stays
+    (placed,) = smap.signs()
+    assert math.hypot(placed["x"] - sign.x, placed["y"] - sign.y) < 0.1
 
 
 def test_first_occupied_measures_along_a_ray():

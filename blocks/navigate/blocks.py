@@ -223,6 +223,12 @@ class RoomVisits(Block):
     explorer's ``done_in`` back until no visit is under way or due.  See
     :mod:`blocks.navigate.rooms`.  run.json gets each room's outcome, the
     time spent and the map builds.
+
+    It also goes back for a readable view of each plate the sign seeker
+    could only see at a grazing angle (``plates``, the seeker's ``wanted``):
+    to a spot in front of the plate on the same local maps, facing it, while
+    ``look_at`` asks the seeker to look at it again, and back
+    (:mod:`blocks.navigate.plate_views`; run.json ``plate_views``).
     """
 
     inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
@@ -236,10 +242,16 @@ class RoomVisits(Block):
               "hold": Port.scalar("bool", required=False, default=False,
                                   doc="pause (e.g. the sign seeker's stop)"),
               "done_in": Port.scalar("bool", required=False, default=False,
-                                     doc="the explorer is done (e.g. its loop closed)")}
+                                     doc="the explorer is done (e.g. its loop closed)"),
+              "plates": Port.message(required=False, default=None,
+                                     doc="plates worth a better view (signs.seek's wanted: "
+                                         "[{key, x, y, facing, top}])")}
     outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity"),
                "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity (CCW +)"),
-               "visiting": Port.scalar("bool", doc="true while a visit drives the robot"),
+               "visiting": Port.scalar("bool", doc="true while a visit or a plate view drives "
+                                                   "the robot"),
+               "look_at": Port.message(doc="the wanted plate the robot now stands in front of "
+                                           "(to signs.seek's look_again), or None"),
                "done": Port.scalar("bool", doc="done_in, held back while a visit is under way "
                                                "or a read sign's door is still sought")}
     params = {
@@ -270,6 +282,8 @@ class RoomVisits(Block):
                                   min=0.5),
         "leg_timeout": Param(float, 60.0, "seconds a leg may take", unit="s", min=1.0),
         "spin_rate": Param(float, 1.2, "turn rate of the look-around", unit="rad/s", min=0.05),
+        "plate_views": Param(bool, True, "go back for a readable view of the plates the seeker "
+                                         "saw only at a grazing angle"),
     }
 
     def setup(self) -> None:
@@ -280,8 +294,11 @@ class RoomVisits(Block):
             raise BlockError(f"depth_max ({self.p.depth_max:g}) is below depth_min "
                              f"({self.p.depth_min:g})", node=self.name, field="param 'depth_max'",
                              hint="Make depth_max at least depth_min.")
+        from .guard import SonarGuard
         spec = load_robot(self.p.robot)
         self._mounts = np.asarray(spec.sonar_mounts, dtype=np.float64)
+        self._guard = SonarGuard(self._mounts, length=spec.length, width=spec.width,
+                                 cone_deg=spec.sonar.cone_deg, max_range=spec.sonar.max_range)
         self._cone, self._max_range = spec.sonar.cone_deg, spec.sonar.max_range
         self._pursuit = PursuitParams(cruise=min(self.p.cruise, spec.limits.max_speed),
                                       max_speed=spec.limits.max_speed,
@@ -299,6 +316,7 @@ class RoomVisits(Block):
         from blocks.maps.local import LocalMaps
         from blocks.maps.offline import OfflineMapParams
 
+        from .plate_views import PlateViewer
         from .rooms import RoomVisitor
         self._maps = LocalMaps(self._mounts, cone_deg=self._cone, max_range=self._max_range,
                                params=OfflineMapParams(resolution=self.p.map_resolution,
@@ -306,6 +324,8 @@ class RoomVisits(Block):
         self._builds: list[float] = []
         self._version: Any = None
         self.visitor = RoomVisitor(self._map_since, self._params, self._pursuit)
+        self.viewer = PlateViewer(self._map_since, self._guard, pursuit=self._pursuit)
+        self._plates_seen: Any = None
 
     def _map_since(self, since: float, near: tuple[float, float]):
         """The offline map (no drift fix) of the scans since ``since`` (s) taken within
@@ -334,25 +354,56 @@ class RoomVisits(Block):
                                  f"{sign!r}", node=self.name, field="input 'signs'",
                                  hint="Connect signs.correlate's 'signs' output.") from None
 
+    def _take_plates(self, plates: list) -> None:
+        from .plate_views import WantedPlate
+        if plates is self._plates_seen:
+            return
+        self._plates_seen = plates
+        try:
+            wanted = [WantedPlate.from_dict(p) for p in plates]
+        except (KeyError, TypeError, ValueError):
+            raise BlockError(f"a plate on the 'plates' input is not {{key, x, y, facing}}: "
+                             f"{plates!r}", node=self.name, field="input 'plates'",
+                             hint="Connect signs.seek's 'wanted' output.") from None
+        self.viewer.want(wanted, self.ctx.time)
+
     def step(self, pose: np.ndarray, ranges: np.ndarray, v_in: float, w_in: float,
-             signs: Any = None, hold: bool = False, done_in: bool = False) -> dict[str, Any]:
+             signs: Any = None, hold: bool = False, done_in: bool = False,
+             plates: list | None = None) -> dict[str, Any]:
         if not self.p.enabled:
             return {"v": float(v_in), "w": float(w_in), "visiting": False,
-                    "done": bool(done_in)}
+                    "done": bool(done_in), "look_at": None}
         self._maps.add(self.ctx.time, pose, ranges)
         if signs is not None:
             self._take_signs(signs)
-        command = self.visitor.step(self.ctx.time, pose, hold=bool(hold))
-        done = bool(done_in) and not self.visitor.visiting and not self.visitor.pending
+        if plates is not None and self.p.plate_views:
+            self._take_plates(plates)
+        # one at a time: a plate view under way first, then a room visit, then a plate view
+        command = None
+        if not self.viewer.active:
+            command = self.visitor.step(self.ctx.time, pose, hold=bool(hold))
+        if command is None and not self.visitor.visiting:
+            known = [] if signs is None or not (self.viewer.active or self.viewer.queue) \
+                else [(float(s["x"]), float(s["y"])) for s in signs.current()]
+            command = self.viewer.step(self.ctx.time, pose, ranges, hold=bool(hold),
+                                       signs=known)
+        look_at = None if self.viewer.look_at is None else {"key": self.viewer.look_at.key}
+        busy = self.visitor.visiting or self.viewer.active
+        done = bool(done_in) and not busy and not self.visitor.pending \
+            and not self.viewer.queue
         if command is None:
-            return {"v": float(v_in), "w": float(w_in), "visiting": False, "done": done}
-        return {"v": command[0], "w": command[1], "visiting": True, "done": done}
+            return {"v": float(v_in), "w": float(w_in), "visiting": False, "done": done,
+                    "look_at": look_at}
+        return {"v": command[0], "w": command[1], "visiting": True, "done": done,
+                "look_at": look_at}
 
     def finish(self) -> None:
         if not self.p.enabled:
             return
         for key, value in self.visitor.summary().items():
             self.report(key, value)
+        if self.p.plate_views:
+            self.report("plate_views", self.viewer.summary())
         self.report("map_builds", len(self._builds))
         if self._builds:
             self.report("map_build_ms_mean", round(1000 * float(np.mean(self._builds)), 1))

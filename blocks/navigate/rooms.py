@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from .grid import NavGrid, inflate, unblock_traversed
+from .legs import Leg, dedupe, turn_rate
 from .planner import PlanningError, plan
 from .pursuit import PurePursuit, PursuitParams, wrap
 
@@ -403,16 +404,6 @@ class _Pending:
     first_seen: float = 0.0
 
 
-@dataclass
-class _Leg:
-    """A path being followed, with the clock that abandons it."""
-
-    follower: PurePursuit
-    started: float
-    best: float = 0.0
-    progress_time: float = 0.0
-
-
 #: A callback giving the local map (an OccupancyMap) of the scans since a time (s) taken
 #: near a point (x, y), and the robot positions of those scans; None when there are too few.
 MapSource = Callable[[float, "tuple[float, float]"], "tuple[Any, np.ndarray] | None"]
@@ -456,7 +447,7 @@ class RoomVisitor:
         self.phase = "idle"  # idle, enter, face, spin, deeper, return, align
         self.door: DoorEstimate | None = None
         self.grid: NavGrid | None = None  # the last grid planned on (pictures, tests)
-        self._leg: _Leg | None = None
+        self._leg: Leg | None = None
         self._face_after = False  # at the end of this leg, face the door and find it again
         self._refined = 0  # door estimates refined from in front of the door
         self._facing_out = False
@@ -564,29 +555,28 @@ class RoomVisitor:
                    face_after: bool = False) -> None:
         """Follow ``path``; with ``face_after``, face the door at its end (see :meth:`_face`)."""
         self.phase = phase
-        self._leg = _Leg(PurePursuit(_dedupe(path), self.pursuit), time, progress_time=time)
+        self._leg = Leg(PurePursuit(dedupe(path), self.pursuit), time)
         self._face_after = face_after
 
     def _follow(self, time: float, pose: np.ndarray) -> tuple[float, float]:
         leg = self._leg
         assert leg is not None
-        v, w, status = leg.follower.step(pose, 0.0)
-        if status == "arrived":
+        v, w, outcome = leg.step(time, pose, timeout=self.p.leg_timeout,
+                                 stall_time=self.p.stall_time)
+        if outcome == "arrived":
             if self._face_after:  # on the door's axis: face it, find it again, go through
                 self._facing_out = self.phase == "return"
                 self.phase = "face"
             else:
                 self._leg_ended(time, pose, "")
             return 0.0, 0.0
-        if leg.follower.progress > leg.best + 0.05 or status == "turning":
-            leg.best, leg.progress_time = max(leg.best, leg.follower.progress), time
-        if time - leg.started > self.p.leg_timeout:
+        if outcome == "timeout":
             self._leg_ended(time, pose, f"{self.phase}: timeout after {self.p.leg_timeout:g} s")
             return 0.0, 0.0
-        if time - leg.progress_time > self.p.stall_time:
+        if outcome:
             self._leg_ended(time, pose, f"{self.phase}: no progress for {self.p.stall_time:g} s")
             return 0.0, 0.0
-        return float(v), float(w)
+        return v, w
 
     def _face(self, time: float, pose: np.ndarray) -> tuple[float, float]:
         """Turn to face the door from its axis, find it again, then go through it (in or out).
@@ -711,10 +701,7 @@ class RoomVisitor:
 
     def _turn_to(self, heading: float, pose: np.ndarray) -> float | None:
         """Turn rate toward ``heading`` (slowing near it), or None once within tolerance."""
-        error = wrap(heading - float(pose[2]))
-        if abs(error) <= self.p.heading_tolerance:
-            return None
-        return math.copysign(min(self.p.spin_rate, max(0.15, 1.5 * abs(error))), error)
+        return turn_rate(heading, float(pose[2]), self.p.spin_rate, self.p.heading_tolerance)
 
     def _end(self, time: float, status: str) -> None:
         assert self._sign is not None
@@ -731,12 +718,3 @@ class RoomVisitor:
                 "time_s": round(sum(r.finished - r.started for r in self.results
                                     if r.status != "not_found"), 1),
                 "rooms": [r.as_dict() for r in self.results]}
-
-
-def _dedupe(path: np.ndarray) -> np.ndarray:
-    """The path without consecutive points closer than 1 cm (the follower needs length)."""
-    path = np.asarray(path, dtype=np.float64).reshape(-1, 2)
-    keep = [0] + [k for k in range(1, len(path))
-                  if np.hypot(*(path[k] - path[k - 1])) > 0.01]
-    out = path[keep]
-    return out if len(out) >= 2 else np.vstack([out, out[-1] + 1e-3])

@@ -126,20 +126,30 @@ class Seek(Block):
 
     Connect ``stop`` to the follower's stop input and ``pan``/``tilt``/``zoom``
     to the camera through a one-tick feedback delay.  ``captured`` fires on the
-    tick a capture is taken; trigger the reader with it.  Writes the
-    behaviour's log to ``DIR/signs/seek_log.csv`` and its counts (stops, time
-    stopped, captures, lost, rejected, timeouts) to run.json.
+    tick a capture is taken; trigger the reader with it.  ``wanted`` lists the
+    plates it could only see at a grazing angle (given up, or captured
+    obliquely); a behaviour that brings the robot in front of one sends it
+    back on ``look_again`` (through a one-tick delay), and the seeker chases
+    it afresh.  Writes the behaviour's log to ``DIR/signs/seek_log.csv`` and
+    its counts (stops, time stopped, captures, lost, rejected, timeouts) to
+    run.json.
     """
 
     inputs = {"detections": DETECTIONS, "camera": CAMERA_MODEL,
               "fresh": Port.event(doc="the camera's new-frame event"),
-              "image": IMAGE, "pose": POSE, **HEAD}
+              "image": IMAGE, "pose": POSE, **HEAD,
+              "look_again": Port.message(required=False, default=None,
+                                         doc="a wanted plate ({key, ...}) the robot now "
+                                             "stands in front of, or None")}
     outputs = {"stop": Port.scalar("bool", doc="halt the robot while true"),
                "pan_cmd": Port.scalar("float64", unit="rad", doc="pan command"),
                "tilt_cmd": Port.scalar("float64", unit="rad", doc="tilt command"),
                "zoom_cmd": Port.scalar("float64", doc="zoom command"),
                "capture": Port.message(doc="Capture: the zoomed frame and where it was taken"),
-               "captured": Port.event(doc="true on the tick a capture is taken")}
+               "captured": Port.event(doc="true on the tick a capture is taken"),
+               "wanted": Port.message(doc="plates worth a better view: [{key, x, y, facing, "
+                                          "top, why}] (odometry frame; top: of the plate "
+                                          "above the camera, m)")}
     params = {"robot": ROBOT,
               "good_view": Param(float, 40.0, "stop once the plate is seen at most this far "
                                               "off its normal", unit="deg", min=0.0, max=89.0),
@@ -156,7 +166,11 @@ class Seek(Block):
                                  min=-30.0, max=30.0),
               "sweep": Param(float, 35.0, "the head sweeps this far either side while "
                                           "exploring (0: looks straight ahead)", unit="deg",
-                             min=0.0, max=90.0)}
+                             min=0.0, max=90.0),
+              "plate_sizes": Param(str, "standard", "standard: every plate is the paper's "
+                                   "0.6 x 0.2 m, placed from one image; any: a plate's size is "
+                                   "unknown and found from the views on the way to it",
+                                   choices=("standard", "any"))}
 
     def setup(self) -> None:
         from .seek import SeekParams, SignSeeker
@@ -166,11 +180,12 @@ class Seek(Block):
             track_range=self.p.track_range, max_stop_range=self.p.max_stop_range,
             target_height_px=self.p.target_height, stop_timeout=self.p.stop_timeout,
             scan_tilt_deg=self.p.scan_tilt, sweep_deg=self.p.sweep,
+            aspect=spec.width / spec.height,
             vfov_half_deg=math.degrees(math.atan(math.tan(spec.hfov / 2) * spec.height
                                                  / spec.width)),
             pan_limit_deg=min(-spec.pan_min_deg, spec.pan_max_deg),
             tilt_min_deg=spec.tilt_min_deg, tilt_max_deg=spec.tilt_max_deg,
-            zoom_max=spec.zoom_max)
+            zoom_max=spec.zoom_max, plate_sizes=self.p.plate_sizes)
         self.seeker = SignSeeker(params, mount=(spec.mount_x, spec.mount_y))
 
     def reset(self) -> None:
@@ -178,16 +193,20 @@ class Seek(Block):
 
     def step(self, detections: list | None, camera: CameraModel | None, fresh: bool,
              image: np.ndarray | None, pose: np.ndarray, pan: float, tilt: float,
-             zoom: float) -> dict[str, Any]:
+             zoom: float, look_again: dict | None = None) -> dict[str, Any]:
+        if look_again is not None:
+            self.seeker.look_again(int(look_again["key"]))
         cmd = self.seeker.step(self.ctx.time, pose, bool(fresh), list(detections or []), camera,
                                float(pan), float(tilt), float(zoom))
         out: dict[str, Any] = {"stop": cmd.stop, "pan_cmd": cmd.pan, "tilt_cmd": cmd.tilt,
-                               "zoom_cmd": cmd.zoom, "captured": cmd.capture is not None}
+                               "zoom_cmd": cmd.zoom, "captured": cmd.capture is not None,
+                               "wanted": list(self.seeker.wanted)}
         if cmd.capture is not None:
             out["capture"] = Capture(image=np.array(image), detection=cmd.capture, camera=camera,
                                      robot_pose=np.array(pose[:3], dtype=np.float64),
                                      pan=float(pan), tilt=float(tilt), zoom=float(zoom),
-                                     tick=self.ctx.tick, time=self.ctx.time)
+                                     tick=self.ctx.tick, time=self.ctx.time,
+                                     scale=cmd.target.scale if cmd.target else 1.0)
         return out
 
     def finish(self) -> None:

@@ -102,6 +102,9 @@ class Sighting:
         The plate's size relative to the standard plate the image estimate
         assumes: ``rel`` is where a standard plate would be, and the plate is
         ``scale`` times as far from the camera (:meth:`SignMap.place_on_walls`).
+    seen_scale : float
+        The size the views on the way to the plate measured (the capture's
+        ``scale``): where the map has no wall for it, the plate keeps it.
     """
 
     text: str
@@ -121,6 +124,7 @@ class Sighting:
     original_pose: np.ndarray | None = None
     cam_rel: tuple[float, float, float] | None = None
     scale: float = 1.0
+    seen_scale: float = 1.0
 
     def __post_init__(self) -> None:
         self.text = normalise_text(self.text)
@@ -194,16 +198,20 @@ def sighting_from_capture(capture: Capture, reading: Reading, *,
     cam_rel = camera_pose_of((0.0, 0.0, 0.0), mount[0], mount[1], capture.pan)
     rel = compose(cam_rel, est.as_tuple())
     x, y, facing = compose(robot, rel)
-    return Sighting(text=reading.text, raw_text=reading.raw_text,
-                    confidence=float(reading.confidence), x=x, y=y, facing=facing,
-                    tick=int(capture.tick), time=float(capture.time), range=est.range,
-                    viewing_angle=est.viewing_angle, sigma=est.sigma_xy, robot_pose=robot,
-                    rel=rel, cam_rel=tuple(float(v) for v in cam_rel),
-                    extra={"zoom": float(capture.zoom), "pan": float(capture.pan),
-                                    "tilt": float(capture.tilt), "method": est.method,
-                                    "sigma_facing": est.sigma_facing,
-                                    "ocr_score": float(reading.ocr_score),
-                                    "match_score": float(reading.match_score)})
+    sighting = Sighting(text=reading.text, raw_text=reading.raw_text,
+                        confidence=float(reading.confidence), x=x, y=y, facing=facing,
+                        tick=int(capture.tick), time=float(capture.time), range=est.range,
+                        viewing_angle=est.viewing_angle, sigma=est.sigma_xy, robot_pose=robot,
+                        rel=rel, cam_rel=tuple(float(v) for v in cam_rel),
+                        scale=float(capture.scale), seen_scale=float(capture.scale),
+                        extra={"zoom": float(capture.zoom), "pan": float(capture.pan),
+                               "tilt": float(capture.tilt), "method": est.method,
+                               "sigma_facing": est.sigma_facing,
+                               "ocr_score": float(reading.ocr_score),
+                               "match_score": float(reading.match_score)})
+    if sighting.scale != 1.0:  # where a plate of the measured size is, along the same ray
+        sighting.place(robot)
+    return sighting
 
 
 # ---- merging ---------------------------------------------------------------------------------
@@ -386,19 +394,18 @@ class SignMap:
             s.scale = 1.0
             s.place(s.robot_pose)
             cx, cy, _ = compose(s.robot_pose, s.cam_rel)
+            s.scale = s.seen_scale  # unless a wall says otherwise
             dx, dy = s.x - cx, s.y - cy
             standard = math.hypot(dx, dy)
             if standard < 1e-6:
                 continue
             band = occupancy.first_occupied(cx, cy, dx / standard, dy / standard,
                                             scales[1] * standard)
-            if band is None:
-                continue
-            hit = band[0] + min(band[1] - band[0], self.WALL_BAND) / 2  # the band's middle
-            if hit >= scales[0] * standard:
+            hit = None if band is None else band[0] + min(band[1] - band[0], self.WALL_BAND) / 2
+            if hit is not None and hit >= scales[0] * standard:  # the band's middle
                 s.scale = min(hit, scales[1] * standard) / standard
-                s.place(s.robot_pose)
                 placed += 1
+            s.place(s.robot_pose)
         self.rebuild()
         return placed
 

@@ -85,7 +85,7 @@ class AnyLookParams:
     level_slope: int = 2
     min_elevation: float = 1.0
     min_blob_fill: float = 0.3
-    max_frame_share: float = 0.25
+    max_frame_share: float = 0.45
     max_ink_spread: float = 0.25
     shape: white.DetectorParams = replace(white.DEFAULT_PARAMS, min_contrast=0.05,
                                           max_contrast=1.0, max_text_chroma=1e9,

@@ -86,6 +86,8 @@ class Capture:
 
     ``robot_pose`` is the robot's belief (odometry) when the frame was taken;
     ``pan`` and ``tilt`` are the camera head's, and ``camera`` its intrinsics.
+    ``scale`` is the plate's size relative to the standard plate, as the
+    views on the way to it measured it (1 when it is taken to be standard).
     """
 
     image: np.ndarray
@@ -97,6 +99,7 @@ class Capture:
     zoom: float
     tick: int
     time: float
+    scale: float = 1.0
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,63 @@
+"""A leg of a way and a turn on the spot: what every go-somewhere behaviour drives.
+
+Why a module: room visits and plate views both follow A* ways with pure
+pursuit, give a leg up when it takes too long or stops getting anywhere, and
+turn on the spot to a heading; one copy of those rules keeps them alike.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .pursuit import PurePursuit, wrap
+
+__all__ = ["Leg", "dedupe", "turn_rate"]
+
+
+@dataclass
+class Leg:
+    """A way being followed by pure pursuit, with the clock that abandons it."""
+
+    follower: PurePursuit
+    started: float
+    best: float = 0.0
+    progress_time: float = math.nan
+
+    def __post_init__(self) -> None:
+        if math.isnan(self.progress_time):
+            self.progress_time = self.started
+
+    def step(self, time: float, pose: np.ndarray, *, timeout: float,
+             stall_time: float) -> tuple[float, float, str]:
+        """``(v, w, outcome)``: outcome is '' while under way, else 'arrived',
+        'timeout' (longer than ``timeout`` s) or 'no progress' (none for ``stall_time`` s)."""
+        v, w, status = self.follower.step(pose, 0.0)
+        if status == "arrived":
+            return 0.0, 0.0, "arrived"
+        if self.follower.progress > self.best + 0.05 or status == "turning":
+            self.best, self.progress_time = max(self.best, self.follower.progress), time
+        if time - self.started > timeout:
+            return 0.0, 0.0, "timeout"
+        if time - self.progress_time > stall_time:
+            return 0.0, 0.0, "no progress"
+        return float(v), float(w), ""
+
+
+def turn_rate(heading: float, theta: float, rate: float, tolerance: float) -> float | None:
+    """Turn rate (rad/s) from ``theta`` toward ``heading``, slowing near it, or None once
+    within ``tolerance``."""
+    error = wrap(heading - theta)
+    if abs(error) <= tolerance:
+        return None
+    return math.copysign(min(rate, max(0.15, 1.5 * abs(error))), error)
+
+
+def dedupe(path: np.ndarray) -> np.ndarray:
+    """The path without consecutive points closer than 1 cm (the follower needs length)."""
+    path = np.asarray(path, dtype=np.float64).reshape(-1, 2)
+    keep = [0] + [k for k in range(1, len(path))
+                  if np.hypot(*(path[k] - path[k - 1])) > 0.01]
+    out = path[keep]
+    return out if len(out) >= 2 else np.vstack([out, out[-1] + 1e-3])
