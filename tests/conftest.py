@@ -43,3 +43,34 @@ def write(tmp_path):
         return path
 
     return writer
+
+
+def floor_plan(width: float, height: float, res: float = 0.05, margin: float = 0.3):
+    """Cell-centre coordinates (x, y) of a map ``width`` x ``height`` m with ``margin`` m
+    round it (image row 0 at the top, as a map_server PNG), for drawing test worlds."""
+    import numpy as np
+    h, w = int(round((height + 2 * margin) / res)), int(round((width + 2 * margin) / res))
+    y, x = np.mgrid[0:h, 0:w]
+    return (x + 0.5) * res - margin, (h - y - 0.5) * res - margin
+
+
+def write_world(folder: Path, name: str, walls, *, start, doc: str, res: float = 0.05,
+                margin: float = 0.3, extra: str = "signs: []") -> Path:
+    """A world file from a wall mask drawn on :func:`floor_plan`'s cells (PNG + YAML)."""
+    import cv2
+    import numpy as np
+    img = np.full(walls.shape, 254, np.uint8)
+    img[walls] = 0
+    cv2.imwrite(str(folder / f"{name}.png"), img)
+    (folder / f"{name}.yaml").write_text(textwrap.dedent(f"""\
+        name: {name}
+        doc: {doc}
+        image: {name}.png
+        resolution: {res}
+        origin: [{-margin}, {-margin}, 0.0]
+        negate: 0
+        occupied_thresh: 0.65
+        free_thresh: 0.196
+        start: {list(start)}
+    """) + textwrap.dedent(extra))
+    return folder / f"{name}.yaml"

@@ -5,9 +5,12 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from conftest import ROOT
 
 
+@pytest.mark.slow
 def test_benchmarks_quick_run(tmp_path):
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks/run_all.py"), "--quick",
                            "--results", str(tmp_path)],

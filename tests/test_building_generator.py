@@ -35,6 +35,7 @@ def test_the_same_kind_and_seed_write_the_same_bytes(tmp_path, kind):
     assert _digest(c.parent, "floor")[".png"] != _digest(a.parent, "floor")[".png"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_every_kind_passes_its_own_checks_over_200_seeds(tmp_path, kind):
     # generate_building raises GeneratorBug when a floor fails check_generated

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import csv
 import json
-import textwrap
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, floor_plan, write_world
+
+pytestmark = pytest.mark.slow  # the main pipeline end to end
 
 GRAPH = ROOT / "graphs" / "semantic_mapping.yaml"
 WALL_X = 4.0  # the wall between the rooms (its west face)
@@ -26,28 +26,11 @@ WALL_X = 4.0  # the wall between the rooms (its west face)
 def two_rooms(tmp_path: Path, door: float, jamb: float, start: list[float]) -> Path:
     """Two rooms of 4 x 5 m and about 5 x 5 m; a door ``door`` m wide in the wall
     between them, which is ``jamb`` m thick (a deep jamb: a doorway in a thick wall)."""
-    res = 0.05
-    h, w = int(5.6 / res), int(9.6 / res)
-    img = np.full((h, w), 254, np.uint8)
-    y, x = np.mgrid[0:h, 0:w]
-    xc, yc = (x + 0.5) * res - 0.3, (h - y - 0.5) * res - 0.3  # image row 0 is the top
+    xc, yc = floor_plan(9.0, 5.0)
     outer = (xc < 0) | (xc > 9) | (yc < 0) | (yc > 5)
     wall = (xc > WALL_X) & (xc < WALL_X + jamb) & (np.abs(yc - 2.5) > door / 2)
-    img[outer | wall] = 0
-    cv2.imwrite(str(tmp_path / "rooms.png"), img)
-    (tmp_path / "rooms.yaml").write_text(textwrap.dedent(f"""\
-        name: rooms
-        doc: Two rooms and a door {door} m wide in a wall {jamb} m thick.
-        image: rooms.png
-        resolution: 0.05
-        origin: [-0.3, -0.3, 0.0]
-        negate: 0
-        occupied_thresh: 0.65
-        free_thresh: 0.196
-        start: {start}
-        signs: []
-    """))
-    return tmp_path / "rooms.yaml"
+    return write_world(tmp_path, "rooms", outer | wall, start=start,
+                       doc=f"Two rooms and a door {door} m wide in a wall {jamb} m thick.")
 
 
 def explore(cli, tmp_path: Path, world: Path) -> tuple[dict, np.ndarray]:

@@ -3,9 +3,7 @@ explorer in closed loop on a small ring corridor the perimeter follower would no
 from __future__ import annotations
 
 import math
-import textwrap
 
-import cv2
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -19,6 +17,8 @@ from blocks.navigate.guard import SonarGuard
 from sim2d.robot import load_robot
 from sim2d.simulation import Simulation
 from sim2d.world import load_world
+
+from conftest import floor_plan, write_world
 
 RES = 0.1
 FREE, OCC, UNKNOWN = 0.05, 0.95, 0.5
@@ -188,29 +188,14 @@ def test_a_follower_that_brings_no_new_floor_is_taken_over():
 def ring_world(tmp_path) -> tuple[object, np.ndarray]:
     """A ring corridor 2 m wide round a solid 6 x 3 m block (outer 10 x 7 m); its floor."""
     res = 0.05
-    h, w = int(7.6 / res), int(10.6 / res)
-    img = np.full((h, w), 254, np.uint8)
-    y, x = np.mgrid[0:h, 0:w]
-    xc, yc = (x + 0.5) * res - 0.3, (h - y - 0.5) * res - 0.3  # image row 0 is the top
+    xc, yc = floor_plan(10.0, 7.0, res)
     outer = (xc < 0) | (xc > 10) | (yc < 0) | (yc > 7)
     block = (xc > 2) & (xc < 8) & (yc > 2) & (yc < 5)
-    img[outer | block] = 0
-    cv2.imwrite(str(tmp_path / "ring.png"), img)
-    (tmp_path / "ring.yaml").write_text(textwrap.dedent("""\
-        name: ring
-        doc: A ring corridor round a solid block.
-        image: ring.png
-        resolution: 0.05
-        origin: [-0.3, -0.3, 0.0]
-        negate: 0
-        occupied_thresh: 0.65
-        free_thresh: 0.196
-        start: [1.0, 3.5, 1.5708]
-        signs: []
-    """))
+    path = write_world(tmp_path, "ring", outer | block, start=(1.0, 3.5, 1.5708),
+                       doc="A ring corridor round a solid block.")
     # the floor at least 0.2 m from a wall: the sonar draws walls a cone's arc thick
     free = ndimage.distance_transform_edt(~(outer | block)) * res >= 0.2
-    return load_world(tmp_path / "ring.yaml"), (xc, yc, free)
+    return load_world(path), (xc, yc, free)
 
 
 def test_the_explorer_goes_round_a_ring_corridor_without_touching_a_wall(tmp_path):

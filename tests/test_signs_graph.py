@@ -9,6 +9,8 @@ import pytest
 
 from conftest import ROOT
 
+pytestmark = pytest.mark.slow  # the main pipeline end to end
+
 GRAPH = ROOT / "graphs/semantic_mapping.yaml"
 
 

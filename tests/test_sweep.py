@@ -278,6 +278,7 @@ def _wait_for_finished(out, count, proc, deadline=240):
     raise AssertionError("the sweep finished no runs in time")
 
 
+@pytest.mark.slow
 def test_a_sweep_killed_midway_resumes_without_rerunning_finished_runs(tiny, tmp_path, cache):
     out = tmp_path / "sweep"
     proc = _start(tiny, out)
@@ -312,6 +313,7 @@ def test_ctrl_c_stops_the_sweep_cleanly_and_keeps_what_finished(tiny, tmp_path, 
             assert run["ticks"] > 0 and (out / "runs" / name / "trajectory.csv").exists()
 
 
+@pytest.mark.slow
 def test_the_ray_engine_gives_the_local_engines_results(tiny, tmp_path, cache):
     pytest.importorskip("ray")
     local, ray = tmp_path / "local", tmp_path / "ray"
