@@ -8,6 +8,12 @@ simulation step of that robot (physics plus the 16-sonar scan): the ratio says
 how many map updates fit in the time of one simulated step.
 Target: >= 2000 updates per second on one core, for both models.
 
+Monte Carlo localisation (``maps.amcl``, 300 particles): one *update* is the
+filter's motion, sensor model and resampling for one scan, forced at every
+step of the same exploration. The filter updates every 0.2 m of travel, five
+or more simulated steps at the follower's speed, so the target is that an
+update costs at most five simulated steps: >= 0.2 updates per step.
+
 Peak memory: ``semmap run graphs/mapping.yaml --world office`` runs as a child
 of a small wrapper process, which reads its peak resident set size (RSS) from
 the kernel when it reaps it (``os.wait4``: that child's own ``ru_maxrss``, so
@@ -47,23 +53,26 @@ from results_io import write_results  # noqa: E402
 
 RESULTS_JSON = Path(__file__).resolve().parent / "results" / "maps.json"
 TARGET = 2000.0
+AMCL_TARGET = 0.2  # filter updates per simulated step's time: one per 0.2 m is one per >= 5 steps
 RSS_TARGET_MB = 400.0
 #: What the reference process imports: the framework and the block libraries.
 REFERENCE_IMPORTS = "import blocks, sim2d, blocks.maps.blocks, blocks.explore.blocks"
 
 
-def record_exploration(steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Scans (T, 16), odometry poses (T, 3), sonar mounts, and seconds per simulated step."""
+def record_exploration(steps: int
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
+    """Scans (T, 16), odometry poses (T, 3), sonar mounts, seconds per simulated step, and
+    which readings were echoes (T, 16)."""
     spec = load_robot("atrv_mini")
     world = load_world(world_path("office"))
     sim = Simulation(world, [("r", spec, world.start)])
     controller = PerimeterController(KnowledgeBases.load(), spec.limits.max_speed,
                                      spec.limits.max_turn_rate)
     index = sonar_group_index(spec)
-    scans, poses, sim_seconds = [], [], 0.0
+    scans, poses, echoes, sim_seconds = [], [], [], 0.0
     for _ in range(steps):
         t0 = time.perf_counter()
-        ranges, _ = sim.sonar("r")
+        ranges, echo = sim.sonar("r")
         sim_seconds += time.perf_counter() - t0
         groups = sonar_groups(ranges, index)
         v, w = controller.decide(np.array([[groups[n][0] for n in GROUP_INPUTS]]))[0]
@@ -72,8 +81,10 @@ def record_exploration(steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
         sim.step(0.1)
         sim_seconds += time.perf_counter() - t0
         scans.append(ranges.copy())
+        echoes.append(echo.copy())
         poses.append(sim.robots["r"].odom.copy())
-    return np.array(scans), np.array(poses), np.asarray(spec.sonar_mounts), sim_seconds / steps
+    return (np.array(scans), np.array(poses), np.asarray(spec.sonar_mounts), sim_seconds / steps,
+            np.array(echoes))
 
 
 def paper_updates_per_second(scans, poses, mounts) -> float:
@@ -94,6 +105,22 @@ def logodds_updates_per_second(scans, poses, mounts) -> float:
                                    y + s * mounts[:, 0] + c * mounts[:, 1], theta + mounts[:, 2]])
         lo.add_scan(sensors, ranges)
     return len(scans) / (time.perf_counter() - start)
+
+
+def amcl_updates_per_second(scans, poses, echoes, mounts) -> float:
+    """Filter updates per second, one forced at every step (300 particles, the office map)."""
+    from blocks.maps.amcl import AMCLParams, MonteCarloLocaliser, map_walls
+    from blocks.maps.mapio import occupancy_map_from_world
+    sonar = load_robot("atrv_mini").sonar
+    walls = map_walls(occupancy_map_from_world(load_world(world_path("office"))))
+    loc = MonteCarloLocaliser(walls, mounts, cone_deg=sonar.cone_deg, max_range=sonar.max_range,
+                              specular_deg=sonar.specular_deg, start=poses[0],
+                              params=AMCLParams(update_min_d=0.0, update_min_a=0.0), rng=0)
+    loc.step(poses[0], scans[0], echoes[0])
+    start = time.perf_counter()
+    for ranges, echo, pose in zip(scans[1:], echoes[1:], poses[1:]):
+        loc.step(pose + [1e-3, 0.0, 0.0], ranges, echo)  # past the zero thresholds
+    return (len(scans) - 1) / (time.perf_counter() - start)
 
 
 def _semmap_command() -> list[str]:
@@ -167,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--json", type=Path, default=RESULTS_JSON)
     args = parser.parse_args(argv)
-    scans, poses, mounts, sim_step = record_exploration(300 if args.quick else 1500)
+    scans, poses, mounts, sim_step, echoes = record_exploration(300 if args.quick else 1500)
     repeats = 1 if args.quick else 3
     rates = {"paper": max(paper_updates_per_second(scans, poses, mounts) for _ in range(repeats)),
              "logodds": max(logodds_updates_per_second(scans, poses, mounts)
@@ -189,6 +216,13 @@ def main(argv: list[str] | None = None) -> int:
         status |= 0 if ok else 1
         print(f"{'PASS' if ok else 'MISS'} {name}: {rate:,.0f} updates per second "
               f"(target >= {TARGET:,.0f})")
+    amcl = amcl_updates_per_second(scans[:200], poses[:200], echoes[:200], mounts)
+    results["amcl_updates_per_s"] = round(amcl, 1)
+    results["amcl_x_sim_step"] = round(amcl / reference, 4)
+    ok = amcl / reference >= AMCL_TARGET
+    status |= 0 if ok else 1
+    print(f"{'PASS' if ok else 'MISS'} amcl (300 particles): {amcl:,.0f} updates per second, "
+          f"{amcl / reference:.2f} per simulated step (target >= {AMCL_TARGET})")
     memory = mapping_memory(300 if args.quick else None)
     results.update(memory)
     ticks = "the whole run" if memory["mapping_steps"] is None else \

@@ -1,5 +1,5 @@
 """The building generator: deterministic per seed, every kind passes its own checks over
-200 seeds, family specs expand as documented, worlds load and plan like the shipped ones."""
+60 seeds, family specs expand as documented, worlds load and plan like the shipped ones."""
 from __future__ import annotations
 
 import hashlib
@@ -37,9 +37,10 @@ def test_the_same_kind_and_seed_write_the_same_bytes(tmp_path, kind):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
-def test_every_kind_passes_its_own_checks_over_200_seeds(tmp_path, kind):
-    # generate_building raises GeneratorBug when a floor fails check_generated
-    for seed in range(200):
+def test_every_kind_passes_its_own_checks_over_60_seeds(tmp_path, kind):
+    # generate_building raises GeneratorBug when a floor fails check_generated;
+    # make eval checks seeds 1000-1059 of every kind the same way
+    for seed in range(60):
         generate_building(kind, seed, tmp_path / f"{kind}-{seed}.yaml", commands=False)
 
 

@@ -232,7 +232,7 @@ def test_cli_interactive_answers_each_line_and_survives_errors(cli, monkeypatch)
 
 def test_executing_fetch_the_managers_mail_reaches_the_mail_room_then_the_manager(cli, tmp_path):
     """The issue's acceptance test: the plan runs in sim2d (graphs/ask.yaml: the planner
-    block feeding navigate.goto's pure pursuit), the robot's true path passes through the
+    block feeding navigate.goto's pure pursuit), the robot's path passes through the
     MAIL ROOM and then the MANAGER's office, and it touches nothing."""
     out = tmp_path / "run"
     result = cli("ask", "fetch the manager's mail", "--map", "office", "--execute",
@@ -249,4 +249,7 @@ def test_executing_fetch_the_managers_mail_reaches_the_mail_room_then_the_manage
     assert visited.index("MAIL ROOM") < len(visited) - 1 - visited[::-1].index("MANAGER")
     assert visited[-1] == "MANAGER"
     assert metrics["world"]["collisions"] == 0
+    # the pose it drove on is the odometry localised on the map, never the true pose
+    assert metrics["amcl"]["updates"] > 20
+    assert metrics["amcl"]["error_max_m"] < 0.08 < metrics["amcl"]["odometry_error_max_m"]
     assert (out / "plan.png").stat().st_size > 10_000 and (out / "path.png").exists()

@@ -334,6 +334,97 @@ class DriftCorrectionBlock(Block):
             self.report("odometry_error_max_m", round(float(raw.max()), 3))
 
 
+@block("maps.amcl", category="maps")
+class AMCLBlock(Block):
+    """The robot's pose on a known map: Monte Carlo localisation with the sonar ring.
+
+    Odometry drifts away from the map a plan was made on; this particle
+    filter (:class:`~blocks.maps.amcl.MonteCarloLocaliser`, ROS ``amcl``'s
+    method with the simulator's sonar model) keeps the pose on it. It starts
+    round the first odometry pose (the map's frame starts where the robot
+    does) and moves with the odometry between updates. With ``truth``
+    connected it reports its own and the raw odometry's position errors
+    (scoring only: the filter never sees it).
+    """
+
+    inputs = {"pose": POSE, "ranges": RANGES,
+              "echo": Port.array("bool", (16,), frame="robot",
+                                 doc="true where a real echo came back (sim2d.sonar's echo)"),
+              "map": Port(kind="handle", doc="the map to localise on: snapshot() gives its "
+                                             "OccupancyMap (semantic.task_planner's grid, or "
+                                             "any map block)"),
+              "truth": TRUTH}
+    outputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
+                                  doc="the pose on the map"),
+               "spread": Port.scalar("float64", unit="m",
+                                     doc="the particles' position standard deviation")}
+    params = {
+        "robot": ROBOT,
+        "enabled": Param(bool, True, "localise (false: pass the odometry through, to compare)"),
+        "particles": Param(int, 300, "number of particles", min=10, max=100_000),
+        "sigma_hit": Param(float, 0.15, "spread of a reading about the range the map predicts "
+                                        "(sonar noise plus the map's own error)", unit="m",
+                           min=0.01),
+        "update_min_d": Param(float, 0.2, "update after this much travel", unit="m", min=0.0),
+        "update_min_a": Param(float, math.pi / 6, "or after this much turning", unit="rad",
+                              min=0.0),
+    }
+
+    def setup(self) -> None:
+        spec = _robot(self.p.robot)
+        self.mounts = np.asarray(spec.sonar_mounts, dtype=np.float64)
+        self.sonar = spec.sonar
+
+    def reset(self) -> None:
+        self.localiser = None
+        self._map_source: Any = None
+        self._errors: list[tuple[float, float]] = []
+
+    def _start(self, handle: Any, pose: np.ndarray) -> None:
+        from .amcl import AMCLParams, MonteCarloLocaliser, map_walls
+        m = handle.snapshot() if hasattr(handle, "snapshot") else None
+        if not isinstance(m, OccupancyMap):
+            raise BlockError("the map input gives no occupancy map", node=self.name,
+                             field="input 'map'",
+                             hint="Connect a handle whose snapshot() is an OccupancyMap: "
+                                  "semantic.task_planner's grid or a map block's map.")
+        params = AMCLParams(particles=self.p.particles, sigma_hit=self.p.sigma_hit,
+                            update_min_d=self.p.update_min_d, update_min_a=self.p.update_min_a)
+        self.localiser = MonteCarloLocaliser(
+            map_walls(m), self.mounts, cone_deg=self.sonar.cone_deg,
+            max_range=self.sonar.max_range,
+            specular_deg=self.sonar.specular_deg if self.sonar.specular else None,
+            start=pose, params=params, rng=self.rng)
+        self._map_source = handle
+
+    def step(self, pose: np.ndarray, ranges: np.ndarray, echo: np.ndarray, map: Any,
+             truth: np.ndarray | None = None) -> dict[str, Any]:
+        pose = np.asarray(pose, dtype=np.float64)[:3]
+        if not self.p.enabled:
+            out, spread = pose.copy(), math.nan
+        else:
+            if self.localiser is None or map is not self._map_source:
+                self._start(map, pose)
+            out, spread = self.localiser.step(pose, ranges, echo), self.localiser.spread()
+        if truth is not None:
+            self._errors.append((math.hypot(out[0] - truth[0], out[1] - truth[1]),
+                                 math.hypot(pose[0] - truth[0], pose[1] - truth[1])))
+        return {"pose": out, "spread": spread}
+
+    def finish(self) -> None:
+        if self.localiser is not None:
+            self.report("updates", self.localiser.updates)
+            self.report("resamples", self.localiser.resamples)
+        if self._errors:
+            estimate, odometry = np.array(self._errors).T
+            self.report("error_median_m", round(float(np.median(estimate)), 3))
+            self.report("error_max_m", round(float(estimate.max()), 3))
+            self.report("error_final_m", round(float(estimate[-1]), 3))
+            self.report("odometry_error_median_m", round(float(np.median(odometry)), 3))
+            self.report("odometry_error_max_m", round(float(odometry.max()), 3))
+            self.report("odometry_error_final_m", round(float(odometry[-1]), 3))
+
+
 @block("maps.process_map", category="maps")
 class ProcessMap(_MapWriter):
     """The paper's processed online map: smoothing, edge detection and border tracing.

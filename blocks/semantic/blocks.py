@@ -209,8 +209,8 @@ class TaskPlanner(Block):
     ``go to`` steps as ``goals`` and its planning grid as ``grid`` (connect it
     to ``navigate.goto``'s ``map`` so the robot drives the legs planned here).
     Writes ``plan.json`` and ``plan.png`` (the plan on the map); given the
-    robot's true ``pose``, the picture also shows the path driven, and
-    run.json gets the places the robot was in, in order.
+    robot's ``pose`` on the map (``maps.amcl``'s), the picture also shows the
+    path driven, and run.json gets the places the robot was in, in order.
     """
 
     inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad", required=False, default=None,
@@ -218,7 +218,8 @@ class TaskPlanner(Block):
                                      "it reaches)")}
     outputs = {"goals": Port.message(doc="the plan's go-to points: [{x, y, name}]"),
                "grid": Port(kind="handle", doc="the planning grid: nav_grid() gives the "
-                                                "NavGrid the legs were planned on")}
+                                                "NavGrid the legs were planned on, snapshot() "
+                                                "the OccupancyMap it came from")}
     params = {
         "command": Param(str, "", "the English command (\"fetch the manager's mail\")"),
         "map": Param(str, "", "a semantic mapping run's folder (empty: the world surveyed)"),
@@ -255,6 +256,10 @@ class TaskPlanner(Block):
     def nav_grid(self):
         """The grid the plan's legs were planned on."""
         return self.qm.grid
+
+    def snapshot(self):
+        """The occupancy map the plan was made on (map frame): what maps.amcl localises on."""
+        return self.qm.occupancy
 
     def step(self, pose: np.ndarray | None = None) -> dict[str, Any]:
         if pose is not None:

@@ -92,6 +92,14 @@ def _execute(ctx: click.Context, command: str, map_source: str, qm: QueryMap,
     visited = metrics.get("plan", {}).get("places_visited", [])
     click.echo(f"  places passed: {' > '.join(visited)}")
     click.echo(f"  collisions: {metrics.get('world', {}).get('collisions', '?')}")
+    amcl = metrics.get("amcl", {})
+    if "error_max_m" in amcl:
+        click.echo(f"  pose on the map (Monte Carlo localisation): at most "
+                   f"{amcl['error_max_m']:.2f} m from the truth, {amcl['error_final_m']:.2f} m "
+                   f"at the end (odometry alone: {amcl['odometry_error_max_m']:.2f} m, "
+                   f"{amcl['odometry_error_final_m']:.2f} m)"
+                   + ("; on a mapping run's map these include the map's own drift"
+                      if run_map else ""))
     click.echo(f"wrote {out}/ (plan.png: the plan and the path driven; run.json)")
 
 
