@@ -27,6 +27,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from blocks.core.errors import SemmapError  # noqa: E402
 from semantic.query import ask, load_map, parse_now  # noqa: E402
 from semantic.query.exam import load_commands  # noqa: E402
 from sim2d.worlds.family import expand_worlds, generated_world  # noqa: E402
@@ -42,7 +43,7 @@ def longest_plan(world: Path) -> tuple[str, str, float] | None:
     for case in cases:
         try:
             plan = ask(case.command, qm, now=parse_now(now))
-        except Exception:  # refusals and questions have no plan to drive
+        except SemmapError:  # refusals have no plan to drive
             continue
         length = float(plan.to_dict().get("path_length_m") or 0.0)
         if plan.goals() and (best is None or length > best[2]):

@@ -52,6 +52,7 @@ import numpy as np
 from scipy import ndimage
 
 from blocks.maps.mapio import OccupancyMap
+from semantic.vocabulary import canonical
 
 
 @dataclass
@@ -690,16 +691,12 @@ def attach_signs(pm: PlaceMap, signs: Iterable[Mapping[str, Any]], *, max_door_d
             claims[i] = (behind, 3, float("inf"))
     out: dict[int, str | None] = {i: None for i in range(len(signs))}
     for i, (place, step, dist) in claims.items():
-        text = _text(signs[i])
+        text = canonical(signs[i].get("text", ""))
         rivals = [(s, d) for j, (p, s, d) in claims.items()
-                  if p == place and _text(signs[j]) != text]
+                  if p == place and canonical(signs[j].get("text", "")) != text]
         if all((step, dist) < rival for rival in rivals):
             out[i] = place
     return out
-
-
-def _text(sign: Mapping[str, Any]) -> str:
-    return " ".join(str(sign.get("text", "")).split()).upper()
 
 
 def _first_place(pm: PlaceMap, x: float, y: float, dx: float, dy: float,

@@ -237,6 +237,7 @@ class MonteCarloLocaliser:
         self._correction = np.zeros(3)  # map pose = correction (+) odometry pose
         self.updates = 0
         self.resamples = 0
+        self.spread_m = self.spread()  # kept with the cloud: it changes only on updates
 
     # ---- the filter ---------------------------------------------------------------------
     def step(self, odometry: np.ndarray, ranges: np.ndarray, echo: np.ndarray) -> np.ndarray:
@@ -257,6 +258,7 @@ class MonteCarloLocaliser:
             self._estimate = self.mean()
             self._correction = _between(odometry, self._estimate)
             self.updates += 1
+            self.spread_m = self.spread()
         return np.array(compose(self._correction, odometry))
 
     def expected_ranges(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

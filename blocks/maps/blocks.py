@@ -247,14 +247,6 @@ class LogOddsMapBlock(_MapWriter):
                           else clear_ranges(sensors, ranges, walls.segments(), self.model))
         self._snapshot = None
         return {"map": self}
-        predicted = np.full(len(silent), np.inf)
-        if len(segments):
-            capsules = np.column_stack([segments, np.zeros(len(segments))])
-            predicted = cone_ranges_near(sensors[silent], capsules,
-                                         math.radians(model.cone_deg) / 2, model.max_range)
-        clear[silent] = np.where(np.isfinite(predicted), predicted - model.arc_thickness / 2,
-                                 model.max_range)
-        return clear
 
     def snapshot(self) -> OccupancyMap | None:
         """The map as it stands (cached until the next scan)."""
@@ -405,7 +397,7 @@ class AMCLBlock(Block):
         else:
             if self.localiser is None or map is not self._map_source:
                 self._start(map, pose)
-            out, spread = self.localiser.step(pose, ranges, echo), self.localiser.spread()
+            out, spread = self.localiser.step(pose, ranges, echo), self.localiser.spread_m
         if truth is not None:
             self._errors.append((math.hypot(out[0] - truth[0], out[1] - truth[1]),
                                  math.hypot(pose[0] - truth[0], pose[1] - truth[1])))

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -304,7 +304,7 @@ class PlateViewer:
             return self._face(time, pose)
         if self.phase == "align":
             return self._align(time, pose)
-        return self._follow(time, pose, ranges)
+        return self._follow(time, pose)
 
     def _drop_read(self, time: float, signs: list[tuple[float, float]]) -> None:
         """Queued plates a sign is known at now need no view."""
@@ -357,13 +357,11 @@ class PlateViewer:
         self.phase = phase
         self._leg = Leg(PurePursuit(dedupe(way), self.pursuit), time)
 
-    def _follow(self, time: float, pose: np.ndarray,
-                ranges: np.ndarray | None) -> tuple[float, float]:
+    def _follow(self, time: float, pose: np.ndarray) -> tuple[float, float]:
         assert self._leg is not None
         v, w, outcome = self._leg.step(time, pose, timeout=self.p.leg_timeout,
                                        stall_time=self.p.stall_time)
-        if not outcome and self.guard is not None and ranges is not None \
-                and self.guard.blocked(ranges, v, w):
+        if not outcome and self._blocked(v, w):
             outcome = "blocked"
         if outcome == "arrived":
             self.phase = "face" if self.phase == "go" else "align"
@@ -401,7 +399,7 @@ class PlateViewer:
         assert self._plate is not None
         heading = math.atan2(self._plate.y - pose[1], self._plate.x - pose[0])
         w = turn_rate(heading, float(pose[2]), self.p.spin_rate, self.p.heading_tolerance)
-        if w is not None and not self._turn_blocked(w):
+        if w is not None and not self._blocked(0.0, w):
             return 0.0, w
         self.phase, self.look_at = "look", self._plate  # facing it, or as near as it may turn
         self._look_until = time + self.p.look_time
@@ -425,29 +423,29 @@ class PlateViewer:
     def _head_back(self, time: float, pose: np.ndarray) -> None:
         here = np.asarray(pose[:2], dtype=np.float64)
         start = self._start[:2]
+        if np.hypot(*(here - start)) < 0.05:
+            self.phase = "align"
+            return
         way = np.vstack([here, start])
         if self._grid is not None:
             try:
                 way = plan(self._grid, here, start).points
             except PlanningError:
                 pass
-        if np.hypot(*(here - start)) < 0.05:
-            self.phase = "align"
-            return
         self._begin_leg("back", way, time)
 
     def _align(self, time: float, pose: np.ndarray) -> tuple[float, float]:
         w = turn_rate(float(self._start[2]), float(pose[2]), self.p.spin_rate,
                       self.p.heading_tolerance)
-        if w is None or self._turn_blocked(w):
+        if w is None or self._blocked(0.0, w):
             self._end(time, self._status or "unread", self._reason)
             return 0.0, 0.0
         return 0.0, w
 
-    def _turn_blocked(self, w: float) -> bool:
-        """Whether the sonar guard hears something the body's corners would sweep into."""
+    def _blocked(self, v: float, w: float) -> bool:
+        """Whether the sonar guard hears something the command (v, w) would drive into."""
         return self.guard is not None and self._ranges is not None \
-            and bool(self.guard.blocked(self._ranges, 0.0, w))
+            and bool(self.guard.blocked(self._ranges, v, w))
 
     def _end(self, time: float, status: str, reason: str = "") -> None:
         assert self._plate is not None
