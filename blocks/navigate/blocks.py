@@ -407,3 +407,72 @@ class RoomVisits(Block):
         self.report("map_builds", len(self._builds))
         if self._builds:
             self.report("map_build_ms_mean", round(1000 * float(np.mean(self._builds)), 1))
+
+
+@block("navigate.collision_monitor", category="navigate")
+class CollisionMonitorBlock(Block):
+    """The last check on every command: slows and stops the robot short of what its sonars hear.
+
+    Whatever behaviour drives, the command is checked against the body's
+    swept footprint over the next ``time_before_collision`` seconds and the
+    echoes of the last ``memory`` seconds; a command that would reach one
+    sooner is scaled down (translation and rotation alike, so the path is
+    unchanged) until it would take that long: Nav2's collision monitor in its
+    "approach" mode (:mod:`blocks.navigate.collision_monitor`).  Held still
+    for a second, it backs or turns the way that is clear for a second.
+    run.json gets the share of ticks it slowed and stopped the robot, and
+    how often it had to get it out of a corner.
+    """
+
+    inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
+                                 doc="the robot's odometry pose (carries older echoes along)"),
+              "ranges": Port.array("float64", (16,), unit="m", frame="robot",
+                                   doc="sonar ranges, in the robot file's order"),
+              "v_in": Port.scalar("float64", unit="m/s", doc="the translation asked for"),
+              "w_in": Port.scalar("float64", unit="rad/s", doc="the rotation asked for")}
+    outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity, made safe"),
+               "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity, made safe"),
+               "scale": Port.scalar("float64", doc="how much of the command was let through "
+                                                   "(1: all, 0: stopped)")}
+    params = {
+        "enabled": Param(bool, True, "check commands; false passes them through unchanged"),
+        "robot": Param(str, "atrv_mini", "robot model (body and sonar)"),
+        "time_before_collision": Param(float, 0.6, "the body may reach an echo no sooner than "
+                                                   "this", unit="s", min=0.1),
+        "margin": Param(float, 0.03, "the body is grown by this much for the check", unit="m",
+                        min=0.0, max=0.3),
+        "memory": Param(float, 1.0, "echoes this recent count, carried along by odometry",
+                        unit="s", min=0.0),
+    }
+
+    def setup(self) -> None:
+        from sim2d.robot import load_robot
+
+        from .collision_monitor import MonitorParams
+        from .guard import SonarGuard
+        spec = load_robot(self.p.robot)
+        self._guard = SonarGuard(np.asarray(spec.sonar_mounts, dtype=np.float64),
+                                 length=spec.length, width=spec.width,
+                                 cone_deg=spec.sonar.cone_deg, max_range=spec.sonar.max_range)
+        self._params = MonitorParams(time_before_collision=self.p.time_before_collision,
+                                     margin=self.p.margin, memory=self.p.memory)
+
+    def reset(self) -> None:
+        from .collision_monitor import CollisionMonitor
+        self.monitor = CollisionMonitor(self._guard, self._params)
+        self._ticks = 0
+
+    def step(self, pose: np.ndarray, ranges: np.ndarray, v_in: float,
+             w_in: float) -> dict[str, Any]:
+        if not self.p.enabled:
+            return {"v": float(v_in), "w": float(w_in), "scale": 1.0}
+        self._ticks += 1
+        v, w = self.monitor.step(self.ctx.time, pose, ranges, float(v_in), float(w_in))
+        return {"v": float(v), "w": float(w), "scale": float(self.monitor.scale)}
+
+    def finish(self) -> None:
+        if not self.p.enabled or not self._ticks:
+            return
+        self.report("slowed_fraction", round(self.monitor.limited_ticks / self._ticks, 4))
+        self.report("stopped_fraction", round(self.monitor.stopped_ticks / self._ticks, 4))
+        self.report("recoveries", self.monitor.recoveries)

@@ -1,0 +1,189 @@
+"""A collision monitor: the last check on every command before it reaches the wheels.
+
+Why: each behaviour (the fuzzy follower, the frontier explorer, a room visit,
+a plate view) judges its own motion on what it attends to, and none of them
+sees everything: the follower's rules look at sonar groups and miss the front
+corner of the body that swings out when it turns round the end of a wall; a
+planned way trusts a map off by the odometry's drift.  The monitor asks one
+question of whatever command arrives: driving on like this, how soon would
+the body cover an echo (:meth:`~blocks.navigate.guard.SonarGuard.collision_time`,
+the swept footprint)?  Sooner than ``time_before_collision`` and the command
+is scaled down, translation and rotation alike, so that the path stays the
+one asked for and the robot arrives no sooner than that: it slows towards an
+obstacle and stops short of it.  This is ROS 2 Nav2's collision monitor in
+its "approach" mode, with the sonar's echo arcs as the observation source.
+
+A sonar corner seen at a grazing angle echoes on one tick and not the next,
+so the echoes of the last ``memory`` seconds are kept, carried into the
+robot's present frame by odometry (exact enough over a second).
+
+The monitor steers only to get out of a corner: a behaviour that keeps
+asking for a motion the monitor holds back is stalled, and its own stall
+handling (back off, turn, plan again) takes over; but where that handling
+asks only for motions the monitor also refuses (a turn away from the wall
+with something touching the front corner on that side, a back-off with a wall
+close behind), the two would hold the robot still for good.  After
+``patience`` seconds stopped, the monitor drives for ``recovery_time`` the
+motion nearest to the one asked for that it lets through (backing, turning
+either way, or both).
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from .guard import SonarGuard
+
+__all__ = ["CollisionMonitor", "MonitorParams", "carry_points"]
+
+
+@dataclass(frozen=True)
+class MonitorParams:
+    """Tuning of :class:`CollisionMonitor` (SI units).
+
+    Attributes
+    ----------
+    time_before_collision
+        A command that would bring the body onto an echo sooner than this
+        (s) is scaled so that it would take this long.
+    margin
+        The body is grown by this much (m) on every side for the check.
+    memory
+        Echoes of the last so many seconds count, not only this scan's.
+    min_range
+        A sonar cannot range closer than this (m): a reading within ``touch``
+        of it may be nearer still, so it is taken as touching the body.
+    touch
+        See ``min_range``.
+    patience, recovery_time, recovery_speed, recovery_turn
+        Stopped this long (s), the monitor drives for ``recovery_time`` (s)
+        the nearest admissible of the motions at most ``recovery_speed``
+        (m/s) and ``recovery_turn`` (rad/s).
+    step
+        The swept footprint is checked every ``step`` seconds of motion.
+    """
+
+    time_before_collision: float = 0.6
+    margin: float = 0.03
+    memory: float = 1.0
+    step: float = 0.05
+    min_range: float = 0.1
+    touch: float = 0.01
+    patience: float = 1.0
+    recovery_time: float = 1.0
+    recovery_speed: float = 0.15
+    recovery_turn: float = 0.6
+
+
+def carry_points(points: np.ndarray, then: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """Points (..., 2) in the robot frame at pose ``then``, expressed in its frame at ``now``.
+
+    Examples
+    --------
+    >>> carry_points(np.array([[1.0, 0.0]]), np.zeros(3), np.array([0.5, 0.0, 0.0])).tolist()
+    [[0.5, 0.0]]
+    """
+    c, s = math.cos(then[2]), math.sin(then[2])
+    wx = then[0] + c * points[..., 0] - s * points[..., 1]
+    wy = then[1] + s * points[..., 0] + c * points[..., 1]
+    c, s = math.cos(now[2]), math.sin(now[2])
+    dx, dy = wx - now[0], wy - now[1]
+    return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
+
+
+class CollisionMonitor:
+    """Scales each command so the body reaches no echo sooner than the time allowed.
+
+    Parameters
+    ----------
+    guard
+        The robot's sonar guard: its body, sonar mounts and echo arcs.
+    params
+        See :class:`MonitorParams`.
+
+    Examples
+    --------
+    >>> mounts = np.array([[0.25, 0.0, 0.0]])
+    >>> monitor = CollisionMonitor(SonarGuard(mounts))
+    >>> v, w = monitor.step(0.0, np.zeros(3), np.array([4.0]), 0.4, 0.0)  # nothing heard
+    >>> round(v, 2), monitor.scale
+    (0.4, 1.0)
+    >>> v, w = monitor.step(0.1, np.zeros(3), np.array([0.15]), 0.4, 0.0)  # 0.15 m ahead
+    >>> round(v, 2)
+    0.23
+    """
+
+    def __init__(self, guard: SonarGuard, params: MonitorParams | None = None) -> None:
+        self.guard = guard
+        self.p = params or MonitorParams()
+        self._scans: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
+        self.scale = 1.0
+        self.limited_ticks = 0
+        self.stopped_ticks = 0
+        self.recoveries = 0
+        self._stopped_since: float | None = None
+        self._recovery: tuple[float, float] | None = None
+        self._recovery_until = 0.0
+
+    def arcs(self, pose: np.ndarray) -> np.ndarray:
+        """(E, S, 2) the remembered echo arcs in the frame of ``pose``."""
+        carried = [carry_points(arcs, then, pose) for _, then, arcs in self._scans if len(arcs)]
+        if not carried:
+            return np.zeros((0, max(self.guard.arc_samples, 1), 2))
+        return np.concatenate(carried)
+
+    def step(self, time: float, pose: np.ndarray, ranges: np.ndarray, v: float,
+             w: float) -> tuple[float, float]:
+        """This tick's command (v, w) scaled for safety; ``pose`` is odometry.
+
+        The scale applied is left in :attr:`scale` (1: unchanged, 0: stopped).
+        """
+        pose = np.asarray(pose, dtype=np.float64)
+        ranges = np.asarray(ranges, dtype=np.float64)
+        ranges = np.where(ranges <= self.p.min_range + self.p.touch, 0.0, ranges)
+        self._scans.append((time, pose.copy(), self.guard.echo_arcs(ranges)))
+        while self._scans and self._scans[0][0] < time - self.p.memory + 1e-9:
+            self._scans.popleft()
+        arcs = self.arcs(pose)
+        horizon = self.p.time_before_collision
+        if self._recovery is not None and time < self._recovery_until:
+            if self._clear(arcs, *self._recovery):
+                self.scale = 1.0
+                return self._recovery
+            self._recovery = None
+        self._recovery = None
+        t = self.guard.collision_time(arcs, v, w, horizon, step=self.p.step, margin=self.p.margin)
+        self.scale = 1.0 if t >= horizon else (0.0 if t <= self.p.step else t / horizon)
+        if self.scale < 1.0:
+            self.limited_ticks += 1
+            self.stopped_ticks += self.scale == 0.0
+        if self.scale > 0.0 or (abs(v) < 1e-6 and abs(w) < 1e-6):
+            self._stopped_since = None
+            return v * self.scale, w * self.scale
+        if self._stopped_since is None:
+            self._stopped_since = time
+        if time - self._stopped_since >= self.p.patience - 1e-9:
+            self._recovery = self._nearest_clear(arcs, v, w)
+            if self._recovery is not None:
+                self.recoveries += 1
+                self._recovery_until = time + self.p.recovery_time
+                self._stopped_since = None
+                return self._recovery
+        return 0.0, 0.0
+
+    def _clear(self, arcs: np.ndarray, v: float, w: float) -> bool:
+        return self.guard.collision_time(arcs, v, w, self.p.time_before_collision,
+                                         step=self.p.step, margin=self.p.margin) == math.inf
+
+    def _nearest_clear(self, arcs: np.ndarray, v: float,
+                       w: float) -> tuple[float, float] | None:
+        """The motion nearest to (v, w) (speeds as shares of the recovery's) the monitor lets
+        through, or None."""
+        speed, turn = self.p.recovery_speed, self.p.recovery_turn
+        options = [(a * speed, b * turn) for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0)
+                   if a or b]
+        options.sort(key=lambda o: ((o[0] - v) / speed) ** 2 + ((o[1] - w) / turn) ** 2)
+        return next((o for o in options if self._clear(arcs, *o)), None)

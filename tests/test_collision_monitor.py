@@ -1,0 +1,135 @@
+"""The collision monitor: the swept footprint, the scaling of commands, the echo memory, and
+in closed loop the turn round a wall end whose corner a straight-ahead check misses."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from blocks.navigate.collision_monitor import CollisionMonitor, MonitorParams, carry_points
+from blocks.navigate.guard import SonarGuard, swept_poses
+from sim2d.robot import load_robot
+from sim2d.simulation import Simulation
+from sim2d.world import load_world
+
+from conftest import floor_plan, write_world
+
+ATRV = load_robot("atrv_mini")
+
+
+def guard() -> SonarGuard:
+    return SonarGuard(np.asarray(ATRV.sonar_mounts), length=ATRV.length, width=ATRV.width,
+                      cone_deg=ATRV.sonar.cone_deg, max_range=ATRV.sonar.max_range)
+
+
+def reading(**values: float) -> np.ndarray:
+    ranges = np.full(len(ATRV.sonar_names), ATRV.sonar.max_range)
+    for name, value in values.items():
+        ranges[ATRV.sonar_names.index(name)] = value
+    return ranges
+
+
+@pytest.mark.parametrize("v, w", [(0.4, 0.0), (0.3, -0.8), (0.0, 1.2), (-0.2, 0.5)])
+def test_swept_poses_follow_the_unicycle(v, w):
+    times = np.linspace(0.0, 2.0, 21)
+    x = y = th = 0.0
+    fine = [(x, y, th)]
+    for _ in range(2000):  # Euler steps of 1 ms
+        x, y, th = x + v * math.cos(th) * 1e-3, y + v * math.sin(th) * 1e-3, th + w * 1e-3
+        fine.append((x, y, th))
+    expected = np.array(fine)[::100]
+    assert np.allclose(swept_poses(v, w, times), expected, atol=2e-3)
+
+
+def test_a_corner_off_the_front_right_is_clear_ahead_but_hit_by_a_right_turn():
+    """A wall end 12 cm off the front-right diagonal sonar: beside the straight lane, but
+    the body's front corner swings onto it in a right turn (the follower's collisions)."""
+    g = guard()
+    arcs = g.echo_arcs(reading(FrRt2=0.12))
+    assert g.collision_time(arcs, 0.4, 0.0, horizon=1.0) == math.inf
+    assert g.collision_time(arcs, 0.3, -0.8, horizon=1.0) < 0.6
+    assert g.collision_time(arcs, 0.3, 0.8, horizon=1.0) == math.inf  # turning away is fine
+
+
+def test_a_wall_alongside_and_readings_without_echo_do_not_slow_the_robot():
+    monitor = CollisionMonitor(guard())
+    # a wall (or a door jamb) 0.2 m beside the body, driving along it
+    assert monitor.step(0.0, np.zeros(3), reading(Rt1=0.2, Rt2=0.2, RtFr2=0.25), 0.45, 0.0) \
+        == (0.45, 0.0)
+    assert monitor.step(0.1, np.zeros(3), reading(), 0.45, -0.6) == (0.45, -0.6)
+
+
+def test_a_command_towards_an_echo_is_scaled_along_its_own_path_and_stopped_at_the_body():
+    p = MonitorParams(time_before_collision=0.6)
+    far = CollisionMonitor(guard(), p)
+    v, w = far.step(0.0, np.zeros(3), reading(Fr1=0.25, Fr2=0.25), 0.4, 0.1)
+    assert 0.0 < far.scale < 1.0
+    assert math.isclose(v / w, 4.0)  # the same arc, driven slower
+    near = CollisionMonitor(guard(), p)
+    assert near.step(0.0, np.zeros(3), reading(Fr1=0.1, Fr2=0.1), 0.4, 0.0) == (0.0, 0.0)
+    assert near.scale == 0.0 and near.stopped_ticks == 1
+    # backing away from it is let through
+    assert near.step(0.1, np.zeros(3), reading(Fr1=0.1, Fr2=0.1), -0.2, 0.0) == (-0.2, 0.0)
+
+
+def test_an_echo_heard_once_is_carried_along_by_odometry_and_forgotten_after_the_memory():
+    monitor = CollisionMonitor(guard(), MonitorParams(memory=1.0))
+    monitor.step(0.0, np.zeros(3), reading(Fr1=0.3, Fr2=0.3), 0.0, 0.0)
+    # the next scans hear nothing (a corner at grazing incidence); the robot has come 0.15 m
+    pose = np.array([0.15, 0.0, 0.0])
+    v, _ = monitor.step(0.5, pose, reading(), 0.4, 0.0)
+    assert monitor.scale < 1.0 and v < 0.4
+    v, _ = monitor.step(1.05, pose, reading(), 0.4, 0.0)
+    assert v == 0.4
+
+
+def test_held_still_with_every_asked_motion_refused_it_backs_or_turns_the_clear_way():
+    """Something touches the front-right corner (the sonar's least range) and a wall is close
+    behind: the behaviour's escape asks to turn left on the spot, which pushes the front
+    corner into it. After ``patience`` s the monitor drives the nearest clear motion."""
+    monitor = CollisionMonitor(guard(), MonitorParams(patience=1.0, recovery_time=1.0))
+    scan = reading(FrRt1=0.1, Bk2=0.28)
+    held = [monitor.step(0.1 * k, np.zeros(3), scan, 0.0, 0.6) for k in range(10)]
+    assert held == [(0.0, 0.0)] * 10
+    v, w = monitor.step(1.0, np.zeros(3), scan, 0.0, 0.6)
+    assert monitor.recoveries == 1 and (v, w) != (0.0, 0.0) and v <= 0.0
+    assert monitor._clear(monitor.arcs(np.zeros(3)), v, w)
+    # it keeps that motion for recovery_time, then hands back to what is asked
+    assert monitor.step(1.5, np.zeros(3), scan, 0.0, 0.6) == (v, w)
+    assert monitor.step(2.05, np.zeros(3), scan, 0.0, 0.6) == (0.0, 0.0)
+
+
+def test_carry_points_is_the_inverse_of_the_motion():
+    points = np.array([[1.0, 0.5], [-0.3, 0.2]])
+    then, now = np.array([1.0, 2.0, 0.3]), np.array([1.5, 1.8, -0.4])
+    back = carry_points(carry_points(points, then, now), now, then)
+    assert np.allclose(back, points)
+
+
+# ---- closed loop ----------------------------------------------------------------------------------
+def wall_end_world(tmp_path):
+    """A wall whose end is just off the robot's front-right corner (robot at the origin, east)."""
+    xc, yc = floor_plan(6.0, 5.0, 0.05)
+    x, y = xc - 2.0, yc - 3.0  # the robot's frame: the start at (2, 3) facing east
+    outer = (xc < 0) | (xc > 6) | (yc < 0) | (yc > 5)
+    block = (x > 0.32) & (x < 2.5) & (y > -2.5) & (y < -0.38)
+    path = write_world(tmp_path, "wall_end", outer | block, start=(2.0, 3.0, 0.0),
+                       doc="A wall end off the front-right corner.")
+    return load_world(path)
+
+
+@pytest.mark.parametrize("monitored, touches", [(False, True), (True, False)])
+def test_a_right_turn_round_a_wall_end_clips_it_unless_monitored(tmp_path, monitored, touches):
+    world = wall_end_world(tmp_path)
+    sim = Simulation(world, [("r", ATRV, world.start)], seed=0)
+    robot = sim.robots["r"]
+    monitor = CollisionMonitor(guard())
+    for tick in range(30):
+        ranges, _ = sim.sonar("r")
+        v, w = 0.3, -0.9  # the follower's turn round the end of its wall
+        if monitored:
+            v, w = monitor.step(0.1 * tick, robot.odom, ranges, v, w)
+        sim.command("r", v, w)
+        sim.step(0.1)
+    assert (robot.collisions > 0) == touches
