@@ -73,8 +73,8 @@ from .mapio import OccupancyMap, occupancy_map_from_world
 if TYPE_CHECKING:
     from sim2d.world import World
 
-__all__ = ["METRIC_KEYS", "VISIBLE_KEYS", "TrajectoryError", "read_path_csv", "score_map",
-           "visible_from_path"]
+__all__ = ["METRIC_KEYS", "VISIBLE_KEYS", "TrajectoryError", "reachable_floor", "read_path_csv",
+           "score_map", "sight_from_cells", "visible_from_path"]
 
 #: The keys of :func:`score_map`'s result, in order (stable: scripts and JSON rely on them).
 METRIC_KEYS = ("precision", "recall", "f1", "free_coverage", "false_free",
@@ -369,23 +369,50 @@ def visible_from_path(world: World, path_xy: np.ndarray, max_range: float = 4.0,
     points = _sample_path(_check_path(path_xy), float(spacing))
     truth = occupancy_map_from_world(world)
     walls = truth.occupancy > 0.5
+    iy, ix, inside = _cell_index(points[:, 0], points[:, 1], truth.origin, truth.resolution,
+                                 walls.shape)
+    return sight_from_cells(walls, iy[inside], ix[inside], float(max_range),
+                            float(truth.resolution))
+
+
+def sight_from_cells(walls: np.ndarray, iy: np.ndarray, ix: np.ndarray, max_range: float,
+                     resolution: float) -> np.ndarray:
+    """Cells of the grid ``walls`` in clear line of sight of any of the cells (``iy``, ``ix``).
+
+    The ray casting of :func:`visible_from_path`, from given cells: rays go
+    out in all directions up to ``max_range`` (m) and stop at their first
+    wall cell, which is seen too.  ``walls`` is indexed ``[iy, ix]``;
+    the cells must be inside it.
+
+    Examples
+    --------
+    >>> walls = np.zeros((5, 9), dtype=bool); walls[:, 4] = True
+    >>> seen = sight_from_cells(walls, np.array([2]), np.array([1]), 10.0, 1.0)
+    >>> seen[2].astype(int).tolist()  # the wall is seen, what is behind it is not
+    [1, 1, 1, 1, 1, 0, 0, 0, 0]
+    """
     h, w = walls.shape
-    dx, dy, reach = _ray_offsets(float(max_range), float(truth.resolution))
+    dx, dy, reach = _ray_offsets(float(max_range), float(resolution))
     # Pad with walls so rays stop at the edge and never index out of the grid.
     pad = reach + 1
     blocked = np.pad(walls, pad, constant_values=True).ravel()
     stride = w + 2 * pad
     offsets = (dy * stride + dx).astype(np.intp)
     seen = np.zeros(blocked.shape, dtype=bool)
-    iy, ix, inside = _cell_index(points[:, 0], points[:, 1], truth.origin, truth.resolution,
-                                 walls.shape)
     steps = np.arange(offsets.shape[1])
-    for base in ((iy[inside] + pad) * stride + ix[inside] + pad):
+    for base in ((np.asarray(iy) + pad) * stride + np.asarray(ix) + pad):
         cells = offsets + base
         hit = blocked[cells]
         first = np.where(hit.any(axis=1), hit.argmax(axis=1), offsets.shape[1] - 1)
         seen[cells[steps <= first[:, None]]] = True
     return seen.reshape(h + 2 * pad, w + 2 * pad)[pad:-pad, pad:-pad].copy()
+
+
+def reachable_floor(world: World) -> tuple[OccupancyMap, np.ndarray]:
+    """The world's wall grid (y-up, as :func:`score_map` scores on) and its reachable free
+    cells: the floor 8-connected to the start, the denominator of ``free_coverage``."""
+    truth, reachable, _ = _ground_truth(world)
+    return truth, reachable
 
 
 # ---- trajectory files --------------------------------------------------------------------
