@@ -68,7 +68,7 @@ def measure(sweeps: list[Path], quiet: bool = False, cache: Path | None = None) 
             except (OSError, ValueError):
                 continue
             metrics = run.get("metrics", {})
-            if run.get("status") != "done" or "offline_map" not in metrics:
+            if run.get("status") not in ("done", "stopped") or "offline_map" not in metrics:
                 continue
             if task["world"] not in known:
                 if not quiet:
