@@ -1,5 +1,6 @@
 """Frontier exploration: the frontier finder, goal choice, the explorer's outcomes, and the
-explorer in closed loop on a small ring corridor the perimeter follower would not finish."""
+explorer in closed loop on a small ring corridor the perimeter follower would not finish and
+round a free-standing block it would circle for ever."""
 from __future__ import annotations
 
 import math
@@ -471,3 +472,77 @@ def test_a_robot_jammed_where_every_way_fails_backs_out_along_its_own_track():
     assert jammed_at[1] - robot.pose[1] > 1.0  # backed out south, along the track
     assert abs(robot.pose[0] - 2.0) < 0.15
     assert explorer.result.end_reason == ""  # not stuck
+
+
+# ---- closed loop: an island the follower would circle for ever ----------------------------------
+def island_world(tmp_path) -> tuple[object, tuple]:
+    """A 12 x 10 m room with a free-standing 3 x 2 m block in its middle; the robot starts
+    beside the block, which is on its right: the follower's 'perimeter' is the block."""
+    res = 0.05
+    xc, yc = floor_plan(12.0, 10.0, res)
+    outer = (xc < 0) | (xc > 12) | (yc < 0) | (yc > 10)
+    block = (xc > 4.5) & (xc < 7.5) & (yc > 4) & (yc < 6)
+    path = write_world(tmp_path, "island", outer | block, start=(6.0, 3.45, math.pi),
+                       doc="A free-standing block in a room.")
+    free = ndimage.distance_transform_edt(~(outer | block)) * res >= 0.2
+    return load_world(path), (xc, yc, free)
+
+
+def test_a_free_standing_block_is_circled_once_and_left_for_the_rest_of_the_room(tmp_path):
+    from blocks.explore.controller import (GROUP_INPUTS, KnowledgeBases, PerimeterController,
+                                           sonar_group_index, sonar_groups_one)
+    from blocks.explore.loop import LoopClosure
+
+    world, (xc, yc, free) = island_world(tmp_path)
+    spec = load_robot("atrv_mini")
+    sim = Simulation(world, [("r", spec, world.start)], seed=0)
+    robot = sim.robots["r"]
+    mounts = np.asarray(spec.sonar_mounts)
+    follower = PerimeterController(KnowledgeBases.load(), spec.limits.max_speed,
+                                   spec.limits.max_turn_rate)
+    index = sonar_group_index(spec)
+    loop = LoopClosure()
+    grid = LogOddsMap(InverseSonarModel(cone_deg=spec.sonar.cone_deg,
+                                        max_range=spec.sonar.max_range, no_echo_reach=1.0),
+                      resolution=RES)
+
+    def snapshot():
+        p, (ix, iy) = grid.probabilities()
+        return OccupancyMap(p, RES, (ix * RES, iy * RES, 0.0))
+
+    explorer = FrontierExplorer(snapshot, SonarGuard(mounts))
+    driven_before_take_over = None
+    for tick in range(9000):
+        ranges, _ = sim.sonar("r")
+        x, y, th = robot.odom
+        c, s = math.cos(th), math.sin(th)
+        grid.add_scan(np.column_stack([x + c * mounts[:, 0] - s * mounts[:, 1],
+                                       y + s * mounts[:, 0] + c * mounts[:, 1],
+                                       th + mounts[:, 2]]), ranges)
+        groups = sonar_groups_one(ranges, index)
+        v, w = follower.decide(np.array([[groups[n] for n in GROUP_INPUTS]]))[0]
+        done = loop.update(x, y, 0.1 * tick, th)
+        out = explorer.step(0.1 * tick, robot.odom, ranges, follower_done=done,
+                            follower_v=float(v), odometry=robot.odom)
+        if explorer.active and driven_before_take_over is None:
+            driven_before_take_over = loop.travelled
+        if explorer.ended:
+            break
+        sim.command("r", *(out if out is not None else (v, w)))
+        sim.step(0.1)
+    # the block's perimeter is about 11 m at the follower's distance: one lap, then on
+    assert explorer.result.start_reason in ("loop closed", "no new floor")
+    assert driven_before_take_over is not None and driven_before_take_over < 25.0
+    assert explorer.result.end_reason == "explored", explorer.result.log[-5:]
+    assert robot.collisions == 0
+    m = snapshot()
+    _, mapped_free, _ = m.classes()
+    cols = np.floor((xc - m.origin[0]) / RES).astype(int)
+    rows = np.floor((yc - m.origin[1]) / RES).astype(int)
+    ok = (rows >= 0) & (rows < m.shape[0]) & (cols >= 0) & (cols < m.shape[1])
+    seen = np.zeros_like(free)
+    seen[ok] = mapped_free[rows[ok], cols[ok]]
+    # the room round the block, out to its walls, is mapped (not just the ring by the block)
+    assert (seen & free).sum() / free.sum() >= 0.85
+    far = free & ((xc < 1.5) | (xc > 10.5))
+    assert (seen & far).sum() / far.sum() >= 0.8
