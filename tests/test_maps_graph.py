@@ -49,3 +49,43 @@ def test_mapping_writes_scored_maps_and_the_paper_map_does_not_regress(cli, tmp_
         occupied, free, _ = m.classes()
         assert occupied.any() and free.any()
         assert (out / "maps" / f"{name}.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def turned_room(folder, angle_deg: float):
+    """A 9 x 6 m room with a 2 x 2 m block out of one corner, turned by ``angle_deg`` about its
+    centre; the start near its south-west corner, facing along its south wall."""
+    import math
+
+    import numpy as np
+
+    from conftest import floor_plan, write_world
+    xc, yc = floor_plan(12.0, 12.0, 0.05)
+    a = math.radians(angle_deg)
+    u = math.cos(a) * (xc - 6.0) + math.sin(a) * (yc - 6.0)
+    v = -math.sin(a) * (xc - 6.0) + math.cos(a) * (yc - 6.0)
+    inside = (np.abs(u) < 4.5) & (np.abs(v) < 3.0) & ~((u > 2.5) & (v > 1.0))
+    su, sv = -3.9, -2.4
+    start = (round(6.0 + math.cos(a) * su - math.sin(a) * sv, 3),
+             round(6.0 + math.sin(a) * su + math.cos(a) * sv, 3), round(a, 4))
+    return write_world(folder, f"room{angle_deg:g}", ~inside, start=start,
+                       doc="A room turned off the image's axes.")
+
+
+def test_a_floor_turned_30_degrees_is_mapped_as_well_as_a_square_one(cli, tmp_path):
+    """The drift correction takes the building's axis from its first long walls, whatever it
+    is: it must not pull a turned floor's walls onto the image's axes."""
+    scores = {}
+    for angle in (0, 30):
+        out = tmp_path / f"out{angle}"
+        result = cli("run", GRAPH, "--world", turned_room(tmp_path, angle), "--out", out, "-q",
+                     "--steps", 3000)
+        assert result.code == 0, result
+        run = json.loads((out / "run.json").read_text())
+        assert run["stop_reason"] == "finished: back at the start"
+        assert run["metrics"]["world"]["collisions"] == 0
+        scores[angle] = run["metrics"]["offline_map"]
+    turned, square = scores[30], scores[0]
+    assert turned["precision"] >= 0.98 and turned["recall"] >= 0.98
+    assert turned["false_free"] <= 0.05
+    assert turned["f1"] >= square["f1"] - 0.02
+    assert turned["free_coverage"] >= square["free_coverage"] - 0.03
