@@ -14,6 +14,11 @@ step of the same exploration. The filter updates every 0.2 m of travel, five
 or more simulated steps at the follower's speed, so the target is that an
 update costs at most five simulated steps: >= 0.2 updates per step.
 
+Visibility (``blocks.maps.score.visible_from_path``, what a sensor on a path
+could see, for the visible-only map scores): about 800 poses along the
+office's corridor loop, against the same reference.
+Target: the whole loop in under 2 s.
+
 Peak memory: ``semmap run graphs/mapping.yaml --world office`` runs as a child
 of a small wrapper process, which reads its peak resident set size (RSS) from
 the kernel when it reaps it (``os.wait4``: that child's own ``ru_maxrss``, so
@@ -43,6 +48,7 @@ from blocks.explore.controller import (GROUP_INPUTS, KnowledgeBases,  # noqa: E4
                                        PerimeterController, sonar_group_index, sonar_groups)
 from blocks.maps.logodds import LogOddsMap  # noqa: E402
 from blocks.maps.paper import LocalMapper, PaperGlobalMap, SensorMount  # noqa: E402
+from blocks.maps.score import visible_from_path  # noqa: E402
 from sim2d.robot import load_robot  # noqa: E402
 from sim2d.simulation import Simulation  # noqa: E402
 from sim2d.world import load_world  # noqa: E402
@@ -121,6 +127,19 @@ def amcl_updates_per_second(scans, poses, echoes, mounts) -> float:
     for ranges, echo, pose in zip(scans[1:], echoes[1:], poses[1:]):
         loc.step(pose + [1e-3, 0.0, 0.0], ranges, echo)  # past the zero thresholds
     return (len(scans) - 1) / (time.perf_counter() - start)
+
+
+VISIBILITY_TARGET_S = 2.0
+
+
+def visibility_seconds() -> tuple[float, int]:
+    """Seconds for visible_from_path on ~800 poses round the office's corridor loop, and the
+    number of cells seen."""
+    world = load_world(world_path("office"))
+    loop = np.array([[1.0, 5.8], [29.0, 5.8], [29.0, 14.0], [1.0, 14.0], [1.0, 5.8]])
+    start = time.perf_counter()
+    seen = visible_from_path(world, loop, spacing=72.0 / 800)
+    return time.perf_counter() - start, int(seen.sum())
 
 
 def _semmap_command() -> list[str]:
@@ -223,6 +242,14 @@ def main(argv: list[str] | None = None) -> int:
     status |= 0 if ok else 1
     print(f"{'PASS' if ok else 'MISS'} amcl (300 particles): {amcl:,.0f} updates per second, "
           f"{amcl / reference:.2f} per simulated step (target >= {AMCL_TARGET})")
+    seconds, cells = min(visibility_seconds() for _ in range(repeats))
+    results["visibility_s"] = round(seconds, 3)
+    results["visibility_poses_per_sim_step"] = round(800 / seconds / reference, 3)
+    ok = seconds <= VISIBILITY_TARGET_S and cells > 50_000
+    status |= 0 if ok else 1
+    print(f"{'PASS' if ok else 'MISS'} visibility: 800 poses round the office loop in "
+          f"{seconds:.2f} s, {800 / seconds / reference:.2f} poses per simulated step "
+          f"(target <= {VISIBILITY_TARGET_S:g} s)")
     memory = mapping_memory(300 if args.quick else None)
     results.update(memory)
     ticks = "the whole run" if memory["mapping_steps"] is None else \
