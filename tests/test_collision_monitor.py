@@ -19,8 +19,7 @@ ATRV = load_robot("atrv_mini")
 
 
 def guard() -> SonarGuard:
-    return SonarGuard(np.asarray(ATRV.sonar_mounts), length=ATRV.length, width=ATRV.width,
-                      cone_deg=ATRV.sonar.cone_deg, max_range=ATRV.sonar.max_range)
+    return SonarGuard.for_robot(ATRV)
 
 
 def reading(**values: float) -> np.ndarray:

@@ -11,6 +11,7 @@ from scipy import ndimage
 
 from blocks.explore.explorer import ExploreParams, FrontierExplorer
 from blocks.explore.frontiers import find_frontiers, frontier_goals, frontier_mask
+from blocks.maps.features import sensor_poses_along
 from blocks.maps.logodds import InverseSonarModel, LogOddsMap
 from blocks.maps.mapio import OccupancyMap
 from blocks.navigate.grid import inflate
@@ -186,6 +187,34 @@ def test_a_follower_that_brings_no_new_floor_is_taken_over():
 
 
 # ---- closed loop: a ring corridor in the simulator -----------------------------------------------
+class ExploreMap:
+    """The explorer's log-odds map of a closed-loop test, drawn from odometry and the sonar."""
+
+    def __init__(self, spec) -> None:
+        self.mounts = np.asarray(spec.sonar_mounts)
+        self.grid = LogOddsMap(InverseSonarModel(cone_deg=spec.sonar.cone_deg,
+                                                 max_range=spec.sonar.max_range,
+                                                 no_echo_reach=1.0), resolution=RES)
+
+    def add(self, pose: np.ndarray, ranges: np.ndarray) -> None:
+        self.grid.add_scan(sensor_poses_along(np.asarray(pose)[None], self.mounts)[0], ranges)
+
+    def snapshot(self) -> OccupancyMap:
+        p, (ix, iy) = self.grid.probabilities()
+        return OccupancyMap(p, RES, (ix * RES, iy * RES, 0.0))
+
+    def free_at(self, xc: np.ndarray, yc: np.ndarray) -> np.ndarray:
+        """Whether the map marks each point (xc, yc) free."""
+        m = self.snapshot()
+        _, mapped_free, _ = m.classes()
+        cols = np.floor((xc - m.origin[0]) / RES).astype(int)
+        rows = np.floor((yc - m.origin[1]) / RES).astype(int)
+        ok = (rows >= 0) & (rows < m.shape[0]) & (cols >= 0) & (cols < m.shape[1])
+        seen = np.zeros(xc.shape, dtype=bool)
+        seen[ok] = mapped_free[rows[ok], cols[ok]]
+        return seen
+
+
 def ring_world(tmp_path) -> tuple[object, np.ndarray]:
     """A ring corridor 2 m wide round a solid 6 x 3 m block (outer 10 x 7 m); its floor."""
     res = 0.05
@@ -204,23 +233,11 @@ def test_the_explorer_goes_round_a_ring_corridor_without_touching_a_wall(tmp_pat
     spec = load_robot("atrv_mini")
     sim = Simulation(world, [("r", spec, world.start)], seed=0)
     robot = sim.robots["r"]
-    mounts = np.asarray(spec.sonar_mounts)
-    grid = LogOddsMap(InverseSonarModel(cone_deg=spec.sonar.cone_deg,
-                                        max_range=spec.sonar.max_range, no_echo_reach=1.0),
-                      resolution=RES)
-
-    def snapshot():
-        p, (ix, iy) = grid.probabilities()
-        return OccupancyMap(p, RES, (ix * RES, iy * RES, 0.0))
-
-    explorer = FrontierExplorer(snapshot, SonarGuard(mounts))
+    grid = ExploreMap(spec)
+    explorer = FrontierExplorer(grid.snapshot, SonarGuard.for_robot(spec))
     for tick in range(6000):
         ranges, _ = sim.sonar("r")
-        x, y, th = robot.odom
-        c, s = math.cos(th), math.sin(th)
-        grid.add_scan(np.column_stack([x + c * mounts[:, 0] - s * mounts[:, 1],
-                                       y + s * mounts[:, 0] + c * mounts[:, 1],
-                                       th + mounts[:, 2]]), ranges)
+        grid.add(robot.odom, ranges)
         out = explorer.step(0.1 * tick, robot.odom, ranges, follower_done=True)
         if explorer.ended:
             break
@@ -229,13 +246,7 @@ def test_the_explorer_goes_round_a_ring_corridor_without_touching_a_wall(tmp_pat
     assert explorer.result.end_reason == "explored", explorer.result.log[-5:]
     assert robot.collisions == 0
     # the whole ring is on the map as free floor (odometry ~ truth over a few minutes)
-    _, mapped_free, _ = snapshot().classes()
-    m = snapshot()
-    cols = np.floor((xc - m.origin[0]) / RES).astype(int)
-    rows = np.floor((yc - m.origin[1]) / RES).astype(int)
-    ok = (rows >= 0) & (rows < m.shape[0]) & (cols >= 0) & (cols < m.shape[1])
-    seen = np.zeros_like(free)
-    seen[ok] = mapped_free[rows[ok], cols[ok]]
+    seen = grid.free_at(xc, yc)
     assert (seen & free).sum() / free.sum() >= 0.85
     # ...including the far side of the block, which the robot had to drive round to see
     far = free & (xc > 8.3)
@@ -497,28 +508,17 @@ def test_a_free_standing_block_is_circled_once_and_left_for_the_rest_of_the_room
     spec = load_robot("atrv_mini")
     sim = Simulation(world, [("r", spec, world.start)], seed=0)
     robot = sim.robots["r"]
-    mounts = np.asarray(spec.sonar_mounts)
     follower = PerimeterController(KnowledgeBases.load(), spec.limits.max_speed,
                                    spec.limits.max_turn_rate)
     index = sonar_group_index(spec)
     loop = LoopClosure()
-    grid = LogOddsMap(InverseSonarModel(cone_deg=spec.sonar.cone_deg,
-                                        max_range=spec.sonar.max_range, no_echo_reach=1.0),
-                      resolution=RES)
-
-    def snapshot():
-        p, (ix, iy) = grid.probabilities()
-        return OccupancyMap(p, RES, (ix * RES, iy * RES, 0.0))
-
-    explorer = FrontierExplorer(snapshot, SonarGuard(mounts))
+    grid = ExploreMap(spec)
+    explorer = FrontierExplorer(grid.snapshot, SonarGuard.for_robot(spec))
     driven_before_take_over = None
     for tick in range(9000):
         ranges, _ = sim.sonar("r")
+        grid.add(robot.odom, ranges)
         x, y, th = robot.odom
-        c, s = math.cos(th), math.sin(th)
-        grid.add_scan(np.column_stack([x + c * mounts[:, 0] - s * mounts[:, 1],
-                                       y + s * mounts[:, 0] + c * mounts[:, 1],
-                                       th + mounts[:, 2]]), ranges)
         groups = sonar_groups_one(ranges, index)
         v, w = follower.decide(np.array([[groups[n] for n in GROUP_INPUTS]]))[0]
         done = loop.update(x, y, 0.1 * tick, th)
@@ -535,13 +535,7 @@ def test_a_free_standing_block_is_circled_once_and_left_for_the_rest_of_the_room
     assert driven_before_take_over is not None and driven_before_take_over < 25.0
     assert explorer.result.end_reason == "explored", explorer.result.log[-5:]
     assert robot.collisions == 0
-    m = snapshot()
-    _, mapped_free, _ = m.classes()
-    cols = np.floor((xc - m.origin[0]) / RES).astype(int)
-    rows = np.floor((yc - m.origin[1]) / RES).astype(int)
-    ok = (rows >= 0) & (rows < m.shape[0]) & (cols >= 0) & (cols < m.shape[1])
-    seen = np.zeros_like(free)
-    seen[ok] = mapped_free[rows[ok], cols[ok]]
+    seen = grid.free_at(xc, yc)
     # the room round the block, out to its walls, is mapped (not just the ring by the block)
     assert (seen & free).sum() / free.sum() >= 0.85
     far = free & ((xc < 1.5) | (xc > 10.5))

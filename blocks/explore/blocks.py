@@ -317,10 +317,7 @@ class FrontierExploration(Block):
         from .explorer import ExploreParams
         from blocks.navigate.guard import SonarGuard
         spec = _robot_spec(self.p.robot)
-        self._guard = SonarGuard(np.asarray(spec.sonar_mounts, dtype=np.float64),
-                                 length=spec.length, width=spec.width,
-                                 cone_deg=spec.sonar.cone_deg, max_range=spec.sonar.max_range,
-                                 ahead=self.p.stop_distance)
+        self._guard = SonarGuard.for_robot(spec, ahead=self.p.stop_distance)
         self._bumpers = list(spec.bumpers)
         limits = spec.limits
         self._pursuit = PursuitParams(cruise=min(self.p.cruise, limits.max_speed),

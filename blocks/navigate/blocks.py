@@ -297,8 +297,7 @@ class RoomVisits(Block):
         from .guard import SonarGuard
         spec = load_robot(self.p.robot)
         self._mounts = np.asarray(spec.sonar_mounts, dtype=np.float64)
-        self._guard = SonarGuard(self._mounts, length=spec.length, width=spec.width,
-                                 cone_deg=spec.sonar.cone_deg, max_range=spec.sonar.max_range)
+        self._guard = SonarGuard.for_robot(spec)
         self._cone, self._max_range = spec.sonar.cone_deg, spec.sonar.max_range
         self._pursuit = PursuitParams(cruise=min(self.p.cruise, spec.limits.max_speed),
                                       max_speed=spec.limits.max_speed,
@@ -451,11 +450,10 @@ class CollisionMonitorBlock(Block):
         from .collision_monitor import MonitorParams
         from .guard import SonarGuard
         spec = load_robot(self.p.robot)
-        self._guard = SonarGuard(np.asarray(spec.sonar_mounts, dtype=np.float64),
-                                 length=spec.length, width=spec.width,
-                                 cone_deg=spec.sonar.cone_deg, max_range=spec.sonar.max_range)
+        self._guard = SonarGuard.for_robot(spec)
         self._params = MonitorParams(time_before_collision=self.p.time_before_collision,
-                                     margin=self.p.margin, memory=self.p.memory)
+                                     margin=self.p.margin, memory=self.p.memory,
+                                     min_range=spec.sonar.min_range)
 
     def reset(self) -> None:
         from .collision_monitor import CollisionMonitor

@@ -153,7 +153,6 @@ class CollisionMonitor:
             if self._clear(arcs, *self._recovery):
                 self.scale = 1.0
                 return self._recovery
-            self._recovery = None
         self._recovery = None
         t = self.guard.collision_time(arcs, v, w, horizon, step=self.p.step, margin=self.p.margin)
         self.scale = 1.0 if t >= horizon else (0.0 if t <= self.p.step else t / horizon)

@@ -87,6 +87,14 @@ class SonarGuard:
     turn_margin: float = 0.03
     arc_samples: int = 3
 
+    @classmethod
+    def for_robot(cls, spec, **tuning) -> "SonarGuard":
+        """The guard of a robot file (:func:`sim2d.robot.load_robot`): its body, sonar mounts,
+        cone and range; ``tuning`` sets the other fields."""
+        return cls(np.asarray(spec.sonar_mounts, dtype=np.float64), length=spec.length,
+                   width=spec.width, cone_deg=spec.sonar.cone_deg,
+                   max_range=spec.sonar.max_range, **tuning)
+
     def echo_points(self, ranges: np.ndarray) -> np.ndarray:
         """(M, 2) robot-frame points of this scan's echoes, each spread across its cone."""
         mounts = np.asarray(self.mounts, dtype=np.float64).reshape(-1, 3)
