@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from blocks.maps.drift import DriftCorrection, DriftCorrector, correct_odometry
+from blocks.maps.drift import DriftCorrection, DriftCorrector, correct_odometry, corrected_run
 from blocks.maps.features import (extract_linear_features, merge_features, predict_ranges,
                                   sensor_poses_along)
 from blocks.maps.logodds import InverseSonarModel, LogOddsMap
@@ -210,19 +210,25 @@ def _rotated(xy: np.ndarray, angle: float) -> np.ndarray:
     return xy @ np.array([[c, -s], [s, c]]).T
 
 
-def l_corridor_run(building_angle: float, slip_deg: float, seed: int = 0):
+def l_corridor_run(building_angle: float, slip_deg: float, seed: int = 0, lean_deg: float = 0.0):
     """East along a corridor, a turn on the spot, then north up a corridor never seen before,
     in a building turned by ``building_angle``; the turn slips by ``slip_deg`` on the
-    odometry, which then integrates the wrong heading.  True poses, odometry, readings."""
+    odometry, which then integrates the wrong heading.  With ``lean_deg`` the second
+    corridor leans that much to the west of north (the building is no longer square).
+    True poses, odometry, readings."""
     # the second corridor's east wall is set back 0.6 m, so no wall carries on round the turn
     walls = np.array([[0, 0, 12, 0], [0, 3, 9.5, 3], [0, 0, 0, 3], [12, 0, 12, 3],
                       [12, 3, 12.6, 3], [12.6, 3, 12.6, 15], [9.5, 3, 9.5, 15],
                       [9.5, 15, 12.6, 15]], dtype=float)
+    lean, corner = math.radians(lean_deg), np.array([11.05, 1.5])
+    walls[5:, :2] = _rotated(walls[5:, :2] - corner, lean) + corner
+    walls[5:, 2:] = _rotated(walls[5:, 2:] - corner, lean) + corner
     walls = np.column_stack([_rotated(walls[:, :2], building_angle),
                              _rotated(walls[:, 2:], building_angle), np.full(len(walls), 0.05)])
     east = [[1.0 + 0.045 * k, 1.5, 0.0] for k in range(224)]
-    turn = [[11.05, 1.5, math.pi / 2 * k / 20] for k in range(1, 21)]
-    north = [[11.05, 1.5 + 0.045 * k, math.pi / 2] for k in range(1, 250)]
+    turn = [[11.05, 1.5, (math.pi / 2 + lean) * k / 20] for k in range(1, 21)]
+    north = [[11.05 - 0.045 * k * math.sin(lean), 1.5 + 0.045 * k * math.cos(lean),
+              math.pi / 2 + lean] for k in range(1, 250)]
     local = np.array(east + turn + north)
     truth = np.column_stack([_rotated(local[:, :2], building_angle),
                              local[:, 2] + building_angle])
@@ -257,6 +263,37 @@ def test_right_angled_walls_correct_heading_along_walls_never_seen_before(buildi
     assert plain_heading > 1.0  # new walls alone cannot tell the heading
     assert right_heading < 0.5, right_heading
     assert right_position < 0.15 * odom_position, (right_position, odom_position)
+
+
+def _final_errors(truth: np.ndarray, poses: np.ndarray) -> tuple[float, float]:
+    """Heading (degrees) and position (m) errors of the last pose."""
+    heading = math.degrees(abs((poses[-1, 2] - truth[-1, 2] + math.pi) % (2 * math.pi) - math.pi))
+    return heading, float(np.hypot(*(poses[-1, :2] - truth[-1, :2])))
+
+
+def test_a_corridor_that_leans_is_not_squared_up():
+    """A corridor 5 degrees off square: its long wall shows that right angles cannot be
+    assumed, and the run is corrected without them (graphs/mapping.yaml on a skewed room,
+    tests/test_maps_graph.py, shows what squaring it up would cost)."""
+    truth, odom, ranges, echo = l_corridor_run(0.3, slip_deg=0.0, lean_deg=5.0)
+    poses, leaning = corrected_run(odom, ranges, echo, MOUNTS)
+    plain = correct_odometry(odom, ranges, echo, MOUNTS, params=DriftCorrection(rectilinear=False))
+    assert leaning is not None and leaning.length >= DriftCorrection().lean_min_length
+    assert _final_errors(truth, poses)[0] < 0.5
+    np.testing.assert_array_equal(poses, plain)  # corrected again without right angles
+    online = DriftCorrector(MOUNTS)
+    for pose, r, e in zip(odom, ranges, echo):
+        online.add(pose, r, e)
+    assert not online.rectilinear and online.leaning_wall is not None
+
+
+def test_a_slipped_turn_is_squared_up_not_taken_for_a_leaning_wall():
+    """The same corridor square, and a turn whose odometry slipped 4 degrees: its walls read
+    4 degrees off the axis at first, which the correction puts right before they are long."""
+    truth, odom, ranges, echo = l_corridor_run(0.3, slip_deg=4.0)
+    poses, leaning = corrected_run(odom, ranges, echo, MOUNTS)
+    assert leaning is None
+    assert _final_errors(truth, poses)[0] < 0.5
 
 
 def test_sonar_visibility_is_each_cone_drawn_up_to_its_range():

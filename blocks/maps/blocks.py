@@ -287,8 +287,9 @@ class DriftCorrectionBlock(Block):
         "robot": ROBOT,
         "enabled": Param(bool, True, "correct the odometry (false: pass it through)"),
         "rectilinear": Param(bool, True, "walls meet at right angles, so every straight wall "
-                                         "measures heading (turn off for buildings that have "
-                                         "walls at other angles)"),
+                                         "measures heading, until a long wall that leans a "
+                                         "few degrees shows otherwise (false: never assume "
+                                         "it)"),
     }
 
     def setup(self) -> None:
@@ -318,6 +319,10 @@ class DriftCorrectionBlock(Block):
         return {"pose": out, "walls": self.corrector}
 
     def finish(self) -> None:
+        if self.p.enabled and self.p.rectilinear:
+            # false: a leaning wall showed the floor is not square, and the correction
+            # stopped assuming it is
+            self.report("rectilinear", self.corrector.rectilinear)
         if self._errors:
             corrected, raw = np.array(self._errors).T
             self.report("error_median_m", round(float(np.median(corrected)), 3))
@@ -492,8 +497,9 @@ class OfflineMapBlock(_MapWriter):
                             max=1.0),
         "correct_drift": Param(bool, True, "correct the odometry against the walls first"),
         "rectilinear": Param(bool, True, "walls meet at right angles, so every straight wall "
-                                         "measures heading (turn off for buildings that have "
-                                         "walls at other angles)"),
+                                         "measures heading, until a long wall that leans a "
+                                         "few degrees shows otherwise (false: never assume "
+                                         "it)"),
         "agree_tol": Param(float, 0.1, "an echo this close to its predicted range confirms it",
                            unit="m", min=0.0),
         "min_support": Param(int, 8, "features need this many echoes", min=2),
@@ -534,6 +540,9 @@ class OfflineMapBlock(_MapWriter):
             return None
         self.report("features", len(result.features))
         self.report("readings", result.class_counts())
+        if self.p.correct_drift and self.p.rectilinear:
+            # false: a leaning wall showed the floor is not square; corrected without it
+            self.report("rectilinear", result.leaning_wall is None)
         return result.map
 
     def snapshot(self) -> OccupancyMap | None:

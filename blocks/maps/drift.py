@@ -21,14 +21,14 @@ drift alone.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .features import (LinearFeature, _mergeable, _refit, extract_linear_features, gap_along,
                        moved, sensor_poses_along)
 
-__all__ = ["DriftCorrection", "DriftCorrector", "correct_odometry"]
+__all__ = ["DriftCorrection", "DriftCorrector", "correct_odometry", "corrected_run"]
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,19 @@ class DriftCorrection:
     rectilinear_gain
         Fraction of the measured heading error corrected per chunk; averages
         the noise of single walls over several chunks.
+    lean_deg, lean_min_length, lean_reference_length
+        A mapped wall at least ``lean_min_length`` (m) long that lies at least
+        ``lean_deg`` (degrees) off the building's axis, yet within
+        ``max_angle_deg`` of it, shows that the building is not rectilinear:
+        a wall that leans a few degrees would otherwise be squared up, turning
+        the heading with it and bending every wall after it.  From then on
+        the correction stops assuming right angles (:func:`correct_odometry`
+        starts again without the assumption).  The wall is measured against
+        the axis of the other mapped walls at least 1 m long, once there are
+        ``lean_reference_length`` (m) of them: the first few metres that fixed
+        the axis leave it a degree or two out.  Shorter walls' directions are
+        too noisy to tell (sonar walls 1-2 m long sit up to 6 degrees off on
+        square floors).
     """
 
     chunk: int = 10
@@ -86,6 +99,9 @@ class DriftCorrection:
     axis_length: float = 3.0
     rectilinear_min_length: float = 0.5
     rectilinear_gain: float = 0.3
+    lean_deg: float = 2.5
+    lean_min_length: float = 4.0
+    lean_reference_length: float = 8.0
 
 
 def _matches(f: LinearFeature, g: LinearFeature, p: DriftCorrection) -> float | None:
@@ -147,6 +163,19 @@ def correct_odometry(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
     --------
     DriftCorrector : the same correction, one scan at a time, while the robot drives.
     """
+    return corrected_run(poses, ranges, echo, mounts, cone_deg, params)[0]
+
+
+def corrected_run(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
+                  mounts: np.ndarray, cone_deg: float = 30.0,
+                  params: DriftCorrection | None = None
+                  ) -> tuple[np.ndarray, LinearFeature | None]:
+    """:func:`correct_odometry`, and the wall that showed the building is not
+    rectilinear (None if none did, or if the correction did not assume it).
+
+    The whole run is at hand, so once a leaning wall shows that right angles
+    cannot be assumed, the run is corrected again from its start without them.
+    """
     corrector = DriftCorrector(mounts, cone_deg, params)
     poses = np.asarray(poses, dtype=np.float64)
     out = poses.copy()
@@ -154,8 +183,12 @@ def correct_odometry(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,
     for start in range(0, len(poses), chunk):
         part = slice(start, min(start + chunk, len(poses)))
         out[part] = corrector.add_chunk(poses[part], ranges[part], echo[part])
+        if corrector.leaning_wall is not None:
+            square = replace(corrector.params, rectilinear=False)
+            return (corrected_run(poses, ranges, echo, mounts, cone_deg, square)[0],
+                    corrector.leaning_wall)
     out[:, 2] = _wrapped(out[:, 2])
-    return out
+    return out, None
 
 
 def _wrapped(angle: np.ndarray) -> np.ndarray:
@@ -194,6 +227,9 @@ class DriftCorrector:
         self._axis = _BuildingAxis(self.params) if self.params.rectilinear else None
         self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._segments: tuple[int, np.ndarray] | None = None
+        self.leaning_wall: LinearFeature | None = None
+        """The mapped wall that showed the building is not rectilinear (then no
+        longer assumed), or None."""
 
     @property
     def walls(self) -> list[LinearFeature]:
@@ -248,6 +284,7 @@ class DriftCorrector:
             if delta is not None:
                 out, local = self._move(delta, poses, out, local)
         cos_merge = math.cos(math.radians(p.max_angle_deg))
+        touched = []
         for f in local:
             for i in self._mapped.near(f, cos_merge, 0.1, ends=True):
                 g = self._mapped.features[i]
@@ -255,10 +292,21 @@ class DriftCorrector:
                     self._mapped.replace(i, _refit(np.vstack([g.points, f.points]), g.normal))
                     break
             else:
+                i = len(self._mapped.features)
                 self._mapped.append(f)
+            touched.append(self._mapped.features[i])
         if local:
             self._segments = None
+        if self._axis is not None:
+            leaning = self._axis.leaning(touched, self._mapped.features)
+            if leaning is not None:
+                self.leaning_wall, self._axis = leaning, None
         return out
+
+    @property
+    def rectilinear(self) -> bool:
+        """Whether the correction still assumes the walls meet at right angles."""
+        return self._axis is not None
 
     def _move(self, delta: np.ndarray, poses: np.ndarray, out: np.ndarray,
               local: list[LinearFeature]) -> tuple[np.ndarray, list[LinearFeature]]:
@@ -325,6 +373,55 @@ class _BuildingAxis:
         if not near.any():
             return None
         return float(np.average(off[near], weights=lengths[near]))
+
+    def leaning(self, walls: list[LinearFeature],
+                mapped: list[LinearFeature]) -> LinearFeature | None:
+        """The first of ``walls`` (walls just mapped) long enough to measure, near the axis
+        yet off it by ``lean_deg`` or more: a wall the building does not square up.
+
+        The axis is measured again for this, from the other ``mapped`` walls at least
+        1 m long near it (at least ``lean_reference_length`` of them).
+        """
+        if self.angle is None:
+            return None
+        p = self.p
+        for f in walls:
+            if f.length < p.lean_min_length:
+                continue
+            off = abs(math.degrees(_off_axis(f, self.angle)))
+            if not p.lean_deg <= off <= p.max_angle_deg:
+                continue
+            axis = self._refined([g for g in mapped if g is not f])
+            if axis is not None and p.lean_deg <= abs(math.degrees(_off_axis(f, axis))):
+                return f
+        return None
+
+    def _refined(self, walls: list[LinearFeature]) -> float | None:
+        """The axis measured on ``walls`` at least 1 m long within ``max_angle_deg`` of
+        it, by their length-weighted median, which the leaning walls cannot drag while the
+        square ones are the longer part (None if they are shorter than
+        ``lean_reference_length`` together)."""
+        long = [g for g in walls if g.length >= 1.0]
+        if not long:
+            return None
+        offs = np.array([_off_axis(g, self.angle) for g in long])
+        lengths = np.array([g.length for g in long])
+        near = np.abs(offs) <= math.radians(self.p.max_angle_deg)
+        if lengths[near].sum() < self.p.lean_reference_length:
+            return None
+        return self.angle + _weighted_median(offs[near], lengths[near])
+
+
+def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    order = np.argsort(values)
+    cumulative = np.cumsum(weights[order])
+    return float(values[order][np.searchsorted(cumulative, cumulative[-1] / 2)])
+
+
+def _off_axis(f: LinearFeature, axis: float) -> float:
+    """Angle (rad) of ``f`` off the nearest of the four directions of ``axis``."""
+    angle = math.atan2(f.p1[1] - f.p0[1], f.p1[0] - f.p0[0])
+    return (angle - axis + math.pi / 4) % (math.pi / 2) - math.pi / 4
 
 
 def _local_features(poses: np.ndarray, ranges: np.ndarray, echo: np.ndarray,

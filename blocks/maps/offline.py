@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cones import cone_tables, cone_window
-from .drift import DriftCorrection, correct_odometry
+from .drift import DriftCorrection, corrected_run
 from .features import (LinearFeature, extract_linear_features, merge_features, predict_ranges,
                        sensor_poses_along)
 from .mapio import OccupancyMap
@@ -109,6 +109,7 @@ class OfflineMap:
     reading_class: np.ndarray  # (T, N) index into READING_CLASSES
     predicted: np.ndarray  # (T, N) predicted ranges (m), inf where no feature
     poses: np.ndarray  # (T, 3) the poses the map was drawn from (drift-corrected or not)
+    leaning_wall: LinearFeature | None = None  # the wall that showed the floor is not square
 
     def class_counts(self) -> dict[str, int]:
         return {name: int((self.reading_class == i).sum()) for i, name in
@@ -284,9 +285,10 @@ def build_offline_map(poses: np.ndarray, ranges: np.ndarray, mounts: np.ndarray,
     if echo is None:
         echo = ranges < max_range - max_range_margin
     echo = np.asarray(echo, dtype=bool)
+    leaning_wall = None
     if p.correct_drift:
-        poses = correct_odometry(poses, ranges, echo, mounts, cone_deg,
-                                  DriftCorrection(rectilinear=p.rectilinear))
+        poses, leaning_wall = corrected_run(poses, ranges, echo, mounts, cone_deg,
+                                            DriftCorrection(rectilinear=p.rectilinear))
     sensors = sensor_poses_along(poses, mounts)  # (T, N, 3)
     features = [f for f in merge_features(extract_linear_features(sensors, ranges, echo, cone_deg))
                 if f.support >= p.min_support]
@@ -303,7 +305,7 @@ def build_offline_map(poses: np.ndarray, ranges: np.ndarray, mounts: np.ndarray,
                 cone_deg, reach)
     m = finish_map(log_odds, seen, corner, features, p)
     return OfflineMap(map=m, features=features, reading_class=cls, predicted=predicted,
-                      poses=poses)
+                      poses=poses, leaning_wall=leaning_wall)
 
 
 def reading_model(ranges: np.ndarray, echo: np.ndarray, cls: np.ndarray, predicted: np.ndarray,
