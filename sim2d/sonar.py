@@ -87,10 +87,12 @@ def cone_ranges(sensors: np.ndarray, segments: np.ndarray, half_angle: float,
 
     Parameters
     ----------
-    sensors : (N, 3) array
+    sensors : (..., N, 3) array
         Sensor poses ``x, y, theta`` in the world frame (m, rad).
-    segments : (S, 5) array
-        Wall capsules ``x1, y1, x2, y2, radius``.
+    segments : (..., S, 5) array
+        Wall capsules ``x1, y1, x2, y2, radius``. Leading axes pair stacks of
+        sensors with stacks of capsules (one numpy pass for many small
+        problems, as the particle filter's sixteen sonars are).
     half_angle : float
         Half the cone angle (rad), below pi/2.
     max_range : float
@@ -98,28 +100,32 @@ def cone_ranges(sensors: np.ndarray, segments: np.ndarray, half_angle: float,
 
     Returns
     -------
-    ranges : (N,) array
+    ranges : (..., N) array
         Distance to the nearest capsule surface in the cone, ``inf`` if none
         within ``max_range``.
-    incidence : (N,) array
+    incidence : (..., N) array
         Angle (rad) between the ray to that point and the wall normal; 0 when
         the beam meets the wall square on; ``nan`` where there is no echo.
     """
-    n = len(sensors)
-    if n == 0 or len(segments) == 0:
-        return np.full(n, np.inf), np.full(n, np.nan)
-    ox, oy, th = sensors[:, 0:1], sensors[:, 1:2], sensors[:, 2:3]
+    shape = sensors.shape[:-1]
+    if sensors.shape[-2] == 0 or segments.shape[-2] == 0:
+        return np.full(shape, np.inf), np.full(shape, np.nan)
+    ox, oy, th = sensors[..., 0:1], sensors[..., 1:2], sensors[..., 2:3]
     dist, t0, t1, t_foot, dx, dy, cx, cy, length2 = nearest_in_cone(
-        ox, oy, np.cos(th), np.sin(th), segments[None, :, :], half_angle)
-    best = np.argmin(dist, axis=1)
-    rows = np.arange(n)
-    ranges = dist[rows, best]
+        ox, oy, np.cos(th), np.sin(th), segments[..., None, :, :], half_angle)
+    width = dist.shape[-1]
+    best = np.argmin(dist, axis=-1).ravel() + np.arange(0, dist.size, width)  # flat indices
+
+    def chosen(a: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(a, dist.shape).ravel()[best].reshape(shape)
+    ranges = chosen(dist)
     # Incidence at the chosen point: 0 at the perpendicular foot, else the angle
     # between the ray and the segment normal.
-    foot_inside = (t_foot[rows, best] >= t0[rows, best]) & (t_foot[rows, best] <= t1[rows, best])
-    ux, uy = dx[rows, best], dy[rows, best]
-    seg_len = np.sqrt(length2[rows, best])
-    rx, ry = cx[rows, best], cy[rows, best]
+    foot = chosen(t_foot)
+    foot_inside = (foot >= chosen(t0)) & (foot <= chosen(t1))
+    ux, uy = chosen(dx), chosen(dy)
+    seg_len = np.sqrt(chosen(length2))
+    rx, ry = chosen(cx), chosen(cy)
     ray_len = np.hypot(rx, ry)
     with np.errstate(divide="ignore", invalid="ignore"):
         along = np.abs(rx * ux + ry * uy) / (ray_len * seg_len)  # cos(angle ray-wall)

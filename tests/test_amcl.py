@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from blocks.maps.amcl import (AMCLParams, MonteCarloLocaliser, low_variance_resample, map_walls,
+from blocks.maps.amcl import (AMCLParams, MonteCarloLocaliser, kld_resample, kld_sample_limit,
+                              low_variance_resample, map_walls, occupied_bins,
                               sample_odometry_motion, walls_in_reach)
 from blocks.maps.features import sensor_poses_along
 from blocks.maps.mapio import occupancy_map_from_world
@@ -61,6 +62,30 @@ def test_the_motion_noise_grows_with_the_step():
 def test_low_variance_resampling_draws_in_proportion_to_the_weights():
     picks = low_variance_resample(np.array([2.0, 1.0, 1.0, 0.0]), np.random.default_rng(0))
     assert np.bincount(picks, minlength=4).tolist() == [2, 1, 1, 0]
+
+
+def test_kld_sampling_asks_for_more_particles_the_more_bins_the_cloud_fills():
+    # Fox 2003, eq. 13 with amcl's kld_err 0.01 and kld_z 0.99: 2 bins -> ceil(96.4)
+    needed = [kld_sample_limit(k, 0.01, 0.99, 1, 10**6) for k in range(1, 30)]
+    assert needed[:3] == [1, 97, 182]
+    assert all(a < b for a, b in zip(needed, needed[1:]))
+    assert kld_sample_limit(1, 0.01, 0.99, 100, 300) == 100  # one bin: the fewest
+    assert kld_sample_limit(40, 0.01, 0.99, 100, 300) == 300  # clipped to the most
+
+
+def test_a_converged_cloud_is_resampled_to_the_fewest_and_a_spread_one_keeps_more():
+    rng = np.random.default_rng(0)
+    params = AMCLParams(particles=300, min_particles=100)
+    tight = np.array([0.25, 0.25, 0.09]) + rng.normal(0.0, [0.03, 0.03, 0.015], (300, 3))
+    spread = rng.uniform([0.0, 0.0, -math.pi], [4.0, 4.0, math.pi], (300, 3))
+    even = np.full(300, 1 / 300)
+    assert len(set(occupied_bins(tight, params.kld_bin).tolist())) == 1
+    assert len(kld_resample(tight, even, params, rng)) == 100
+    assert len(kld_resample(spread, even, params, rng)) == 300
+    # what is kept follows the weights: the heavy half of a cloud gives nearly every draw
+    weights = np.where(np.arange(300) < 150, 0.99 / 150, 0.01 / 150)
+    kept = kld_resample(spread, weights, params, rng)
+    assert np.mean(kept < 150) > 0.95
 
 
 def test_the_map_walls_give_the_ranges_the_simulator_reads(office):
@@ -116,6 +141,16 @@ def test_the_filter_holds_the_pose_on_the_map_where_odometry_drifts_off_it(offic
     assert drift.max() > 0.5  # the odometry is half a metre out by the end
     assert errors.max() < 0.15 and np.median(errors) < 0.08
     assert loc.updates > 50 and loc.spread() < 0.2
+    # converged, the cloud needs and keeps only the fewest particles
+    assert loc.particle_counts[-1] == loc.params.min_particles < loc.params.particles
+
+
+def test_a_fixed_number_of_particles_holds_the_pose_as_well(office):
+    world, walls = office
+    loc = _localiser(walls, world.start, min_particles=300)
+    errors, _ = _drive(world, loc, 500)
+    assert errors.max() < 0.15 and np.median(errors) < 0.08
+    assert set(loc.particle_counts) == {300}
 
 
 def test_the_filter_finds_the_pose_from_a_guess_a_third_of_a_metre_out(office):

@@ -23,7 +23,13 @@ filter corrects it with what the sonar hears, as ``amcl`` does with a laser
   beams of one ring are far from independent and the raw product makes the
   cloud collapse onto a wrong pose.
 - **Resampling**: low-variance resampling, whenever the effective sample
-  size falls below half the particles.
+  size falls below half the particles, or fewer particles would do.
+- **How many particles** (KLD sampling, Fox 2003, as ``amcl`` does): the
+  cloud is binned (0.5 m, 0.5 m, 10 degrees) and a resampled cloud that
+  falls in ``k`` bins gets the particles that bound the error of its
+  histogram (Kullback-Leibler divergence ``kld_err`` with quantile
+  ``kld_z``), between ``min_particles`` and ``particles``. A converged cloud
+  needs far fewer than a spread one, and an update costs in proportion.
 
 Updates happen only after the robot has moved ``update_min_d`` or turned
 ``update_min_a`` (``amcl`` defaults: 0.2 m, pi/6); in between, the estimate
@@ -43,8 +49,9 @@ from sim2d.world import segments_from_occupancy
 from .features import sensor_poses_along
 from .mapio import OccupancyMap
 
-__all__ = ["AMCLParams", "MonteCarloLocaliser", "low_variance_resample", "map_walls",
-           "sample_odometry_motion", "walls_in_reach"]
+__all__ = ["AMCLParams", "MonteCarloLocaliser", "kld_resample", "kld_sample_limit",
+           "low_variance_resample", "map_walls", "occupied_bins", "sample_odometry_motion",
+           "walls_in_reach"]
 
 
 @dataclass(frozen=True)
@@ -54,7 +61,16 @@ class AMCLParams:
     Attributes
     ----------
     particles
-        Number of particles.
+        Number of particles at the start, and the most there may be
+        (``amcl``'s ``max_particles``).
+    min_particles
+        The fewest there may be (set it to ``particles`` for a fixed number).
+    kld_err, kld_z
+        KLD sampling's bound on the error of the cloud's histogram, and the
+        standard normal quantile of its confidence (``amcl``'s names and
+        defaults; ``amcl`` uses ``kld_z`` as the quantile itself).
+    kld_bin
+        Bin size (m, m, rad) of that histogram (``amcl``'s kd-tree cells).
     odom_alpha
         Motion noise (``odom_alpha1..4``): rotation from rotation, rotation
         from translation (rad per m), translation from translation,
@@ -82,6 +98,10 @@ class AMCLParams:
     """
 
     particles: int = 300
+    min_particles: int = 100
+    kld_err: float = 0.01
+    kld_z: float = 0.99
+    kld_bin: tuple[float, float, float] = (0.5, 0.5, math.radians(10.0))
     odom_alpha: tuple[float, float, float, float] = (0.2, 0.05, 0.1, 0.05)
     update_min_d: float = 0.2
     update_min_a: float = math.pi / 6
@@ -130,6 +150,9 @@ def walls_in_reach(sensors: np.ndarray, walls: np.ndarray, half_cone: float,
                            c, s, walls[None, :, :], half)[0]  # (K, S)
     keep = dist <= (max_range + back + radius)[:, None]
     return [walls[row] for row in keep]
+
+
+_UNREACHABLE = np.array([1e9, 1e9, 1e9, 1e9, 0.0])  # a capsule beyond every sonar's range
 
 
 def _wrap(angle: np.ndarray | float) -> np.ndarray | float:
@@ -183,17 +206,64 @@ def sample_odometry_motion(particles: np.ndarray, before: np.ndarray, after: np.
     return out
 
 
-def low_variance_resample(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Indices drawn in proportion to ``weights`` with one random offset (table 4.4).
+def low_variance_resample(weights: np.ndarray, rng: np.random.Generator,
+                          count: int | None = None) -> np.ndarray:
+    """``count`` (default: as many as weights) indices drawn in proportion to ``weights``
+    with one random offset (table 4.4).
 
     One draw instead of P keeps the particles' variety when the weights are
     even, and costs O(P).
     """
-    n = len(weights)
+    n = len(weights) if count is None else int(count)
     cumulative = np.cumsum(weights / weights.sum())
     cumulative[-1] = 1.0
     points = (rng.uniform(0.0, 1.0 / n) + np.arange(n) / n)
     return np.searchsorted(cumulative, points, side="left")
+
+
+def kld_sample_limit(bins: int, err: float, z: float, low: int, high: int) -> int:
+    """Particles needed for a cloud in ``bins`` histogram bins (Fox 2003, eq. 13).
+
+    The Wilson-Hilferty approximation of the chi-square quantile bounds, with
+    quantile ``z``, the Kullback-Leibler divergence ``err`` between the
+    cloud's histogram and the true one. One bin needs no more than ``low``
+    (where ``amcl`` takes ``high``: a cloud inside one bin is already as
+    exact as the histogram can tell). Clipped to ``[low, high]``.
+    """
+    if bins <= 1:
+        return low
+    b = 2.0 / (9.0 * (bins - 1))
+    n = math.ceil((bins - 1) / (2.0 * err) * (1.0 - b + math.sqrt(b) * z) ** 3)
+    return int(min(max(n, low), high))
+
+
+def occupied_bins(particles: np.ndarray, size: tuple[float, float, float]) -> np.ndarray:
+    """The histogram bin key of each particle (P,): equal keys share a bin."""
+    cells = np.floor(particles / np.asarray(size)).astype(np.int64)
+    cells[:, 2] = np.floor(_wrap(particles[:, 2]) / size[2]).astype(np.int64)
+    cells -= cells.min(axis=0)
+    flat = np.ravel_multi_index(cells.T, tuple(cells.max(axis=0) + 1))
+    return np.unique(flat, return_inverse=True)[1].ravel()
+
+
+def kld_resample(particles: np.ndarray, weights: np.ndarray, params: AMCLParams,
+                 rng: np.random.Generator) -> np.ndarray:
+    """Indices of a resampled cloud whose size KLD sampling chooses.
+
+    Up to ``params.particles`` are drawn (low variance, then shuffled so that
+    every prefix is a fair sample) and kept until their number reaches the
+    limit for the bins they fill so far (``amcl``'s ``pf_update_resample``).
+    """
+    p = params
+    draws = rng.permutation(low_variance_resample(weights, rng, p.particles))
+    keys = occupied_bins(particles[draws], p.kld_bin)
+    first = np.zeros(len(keys), dtype=bool)
+    first[np.unique(keys, return_index=True)[1]] = True
+    bins = np.cumsum(first)  # bins filled by the first m + 1 draws
+    needed = np.array([kld_sample_limit(int(k), p.kld_err, p.kld_z, p.min_particles,
+                                        p.particles) for k in bins])
+    enough = np.flatnonzero(np.arange(1, len(draws) + 1) >= needed)
+    return draws[:int(enough[0]) + 1] if len(enough) else draws
 
 
 class MonteCarloLocaliser:
@@ -237,6 +307,7 @@ class MonteCarloLocaliser:
         self._correction = np.zeros(3)  # map pose = correction (+) odometry pose
         self.updates = 0
         self.resamples = 0
+        self.particle_counts: list[int] = []  # the cloud's size after each update
         self.spread_m = self.spread()  # kept with the cloud: it changes only on updates
 
     # ---- the filter ---------------------------------------------------------------------
@@ -258,6 +329,7 @@ class MonteCarloLocaliser:
             self._estimate = self.mean()
             self._correction = _between(odometry, self._estimate)
             self.updates += 1
+            self.particle_counts.append(len(self.particles))
             self.spread_m = self.spread()
         return np.array(compose(self._correction, odometry))
 
@@ -269,13 +341,16 @@ class MonteCarloLocaliser:
         (:func:`walls_in_reach`): the same ranges, at a third of the cost.
         """
         sensors = sensor_poses_along(poses, self.mounts)  # (P, 16, 3)
-        ranges = np.empty(sensors.shape[:2])
-        incidence = np.empty(sensors.shape[:2])
         reach = walls_in_reach(sensors, self.walls, self.half_cone, self.max_range)
+        # one numpy pass for all sixteen: each sonar's walls, padded with capsules too far
+        # to reach, which no cone can choose over a wall in range
+        stacked = np.empty((len(reach), max(1, max(len(w) for w in reach)), 5))
+        stacked[:] = _UNREACHABLE
         for k, walls in enumerate(reach):
-            ranges[:, k], incidence[:, k] = cone_ranges(sensors[:, k], walls, self.half_cone,
-                                                        self.max_range)
-        return ranges, incidence
+            stacked[k, :len(walls)] = walls
+        ranges, incidence = cone_ranges(np.swapaxes(sensors, 0, 1), stacked, self.half_cone,
+                                        self.max_range)
+        return ranges.T, incidence.T
 
     def log_likelihood(self, poses: np.ndarray, ranges: np.ndarray,
                        echo: np.ndarray) -> np.ndarray:
@@ -302,11 +377,21 @@ class MonteCarloLocaliser:
         log_w -= log_w.max()
         w = np.exp(log_w)
         self.weights = w / w.sum()
-        if 1.0 / float(np.sum(self.weights ** 2)) < len(self.weights) / 2:
-            keep = low_variance_resample(self.weights, self.rng)
+        n = len(self.weights)
+        if 1.0 / float(np.sum(self.weights ** 2)) < n / 2 or self._fewer_would_do():
+            keep = kld_resample(self.particles, self.weights, p, self.rng)
             self.particles = self.particles[keep]
             self.weights = np.full(len(keep), 1.0 / len(keep))
             self.resamples += 1
+
+    def _fewer_would_do(self) -> bool:
+        """Whether KLD sampling asks for fewer particles than the cloud has."""
+        p = self.params
+        if p.min_particles >= len(self.particles):
+            return False
+        bins = int(occupied_bins(self.particles, p.kld_bin).max()) + 1
+        return kld_sample_limit(bins, p.kld_err, p.kld_z, p.min_particles,
+                                p.particles) < len(self.particles)
 
     # ---- the estimate -------------------------------------------------------------------
     def mean(self) -> np.ndarray:

@@ -358,7 +358,11 @@ class AMCLBlock(Block):
     params = {
         "robot": ROBOT,
         "enabled": Param(bool, True, "localise (false: pass the odometry through, to compare)"),
-        "particles": Param(int, 300, "number of particles", min=10, max=100_000),
+        "particles": Param(int, 300, "number of particles at the start, and the most there "
+                                     "may be", min=10, max=100_000),
+        "min_particles": Param(int, 100, "the fewest there may be, when the cloud has "
+                                         "converged (KLD sampling; = particles: a fixed "
+                                         "number)", min=1, max=100_000),
         "sigma_hit": Param(float, 0.15, "spread of a reading about the range the map predicts "
                                         "(sonar noise plus the map's own error)", unit="m",
                            min=0.01),
@@ -385,7 +389,13 @@ class AMCLBlock(Block):
                              field="input 'map'",
                              hint="Connect a handle whose snapshot() is an OccupancyMap: "
                                   "semantic.task_planner's grid or a map block's map.")
-        params = AMCLParams(particles=self.p.particles, sigma_hit=self.p.sigma_hit,
+        if self.p.min_particles > self.p.particles:
+            raise BlockError(f"min_particles ({self.p.min_particles}) is more than particles "
+                             f"({self.p.particles})", node=self.name, field="min_particles",
+                             hint="Set min_particles at most particles (equal: a fixed "
+                                  "number of particles).")
+        params = AMCLParams(particles=self.p.particles, min_particles=self.p.min_particles,
+                            sigma_hit=self.p.sigma_hit,
                             update_min_d=self.p.update_min_d, update_min_a=self.p.update_min_a)
         self.localiser = MonteCarloLocaliser(
             map_walls(m), self.mounts, cone_deg=self.sonar.cone_deg,
@@ -412,6 +422,10 @@ class AMCLBlock(Block):
         if self.localiser is not None:
             self.report("updates", self.localiser.updates)
             self.report("resamples", self.localiser.resamples)
+            counts = self.localiser.particle_counts
+            if counts:
+                self.report("particles_mean", round(float(np.mean(counts)), 1))
+                self.report("particles_min", int(min(counts)))
         if self._errors:
             estimate, odometry = np.array(self._errors).T
             self.report("error_median_m", round(float(np.median(estimate)), 3))
