@@ -260,9 +260,13 @@ def test_a_run_past_its_timeout_stops_with_its_outputs_kept(tiny, tmp_path, cach
     assert rows(out)["corridor-s0"]["status"] == "timeout"
 
 
+# long enough that a sweep stopped when its first run has ended has runs left to do
+MIDWAY_STEPS = "6000"
+
+
 def _start(tiny, out):
     return subprocess.Popen([str(SEMMAP), "sweep", str(tiny), "--worlds", "gen:any:0-5",
-                             "--steps", "12000", "--out", str(out), "-j", "2"],
+                             "--steps", MIDWAY_STEPS, "--out", str(out), "-j", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "CI": "true"}, start_new_session=True)
 
@@ -288,7 +292,8 @@ def test_a_sweep_killed_midway_resumes_without_rerunning_finished_runs(tiny, tmp
     finished = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("runs/*/run.json")
                 if json.loads(p.read_text())["status"] == "done"}
     assert 1 <= len(finished) < 6
-    resumed = sweep(tiny, "--worlds", "gen:any:0-5", "--steps", "12000", "--out", out, "-j", "2")
+    resumed = sweep(tiny, "--worlds", "gen:any:0-5", "--steps", MIDWAY_STEPS, "--out", out,
+                    "-j", "2")
     assert resumed.returncode == 0, resumed.stderr
     assert f"{6 - len(finished)} run now, {len(finished)} ended earlier," in resumed.stderr
     for name, mtime in finished.items():
