@@ -260,8 +260,9 @@ def kld_resample(particles: np.ndarray, weights: np.ndarray, params: AMCLParams,
     first = np.zeros(len(keys), dtype=bool)
     first[np.unique(keys, return_index=True)[1]] = True
     bins = np.cumsum(first)  # bins filled by the first m + 1 draws
-    needed = np.array([kld_sample_limit(int(k), p.kld_err, p.kld_z, p.min_particles,
-                                        p.particles) for k in bins])
+    limits = np.array([kld_sample_limit(k, p.kld_err, p.kld_z, p.min_particles, p.particles)
+                       for k in range(int(bins[-1]) + 1)])
+    needed = limits[bins]
     enough = np.flatnonzero(np.arange(1, len(draws) + 1) >= needed)
     return draws[:int(enough[0]) + 1] if len(enough) else draws
 

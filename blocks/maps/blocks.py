@@ -372,6 +372,11 @@ class AMCLBlock(Block):
     }
 
     def setup(self) -> None:
+        if self.p.min_particles > self.p.particles:
+            raise BlockError(f"min_particles ({self.p.min_particles}) is more than particles "
+                             f"({self.p.particles})", node=self.name, field="min_particles",
+                             hint="Set min_particles at most particles (equal: a fixed "
+                                  "number of particles).")
         spec = _robot(self.p.robot)
         self.mounts = np.asarray(spec.sonar_mounts, dtype=np.float64)
         self.sonar = spec.sonar
@@ -389,11 +394,6 @@ class AMCLBlock(Block):
                              field="input 'map'",
                              hint="Connect a handle whose snapshot() is an OccupancyMap: "
                                   "semantic.task_planner's grid or a map block's map.")
-        if self.p.min_particles > self.p.particles:
-            raise BlockError(f"min_particles ({self.p.min_particles}) is more than particles "
-                             f"({self.p.particles})", node=self.name, field="min_particles",
-                             hint="Set min_particles at most particles (equal: a fixed "
-                                  "number of particles).")
         params = AMCLParams(particles=self.p.particles, min_particles=self.p.min_particles,
                             sigma_hit=self.p.sigma_hit,
                             update_min_d=self.p.update_min_d, update_min_a=self.p.update_min_a)

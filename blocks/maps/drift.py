@@ -358,7 +358,7 @@ class _BuildingAxis:
         long = [f for f in local if f.length >= p.rectilinear_min_length]
         if not long:
             return None
-        angles = np.array([math.atan2(f.p1[1] - f.p0[1], f.p1[0] - f.p0[0]) for f in long])
+        angles = np.array([_direction(f) for f in long])
         lengths = np.array([f.length for f in long])
         if self.angle is None:
             # a quadrupled angle makes the four wall directions one direction
@@ -368,7 +368,7 @@ class _BuildingAxis:
             if self.length >= p.axis_length:
                 self.angle = math.atan2(self.sum[1], self.sum[0]) / 4
             return None
-        off = (angles - self.angle + math.pi / 4) % (math.pi / 2) - math.pi / 4
+        off = _off_axis(angles, self.angle)
         near = np.abs(off) <= math.radians(p.max_angle_deg)
         if not near.any():
             return None
@@ -388,11 +388,12 @@ class _BuildingAxis:
         for f in walls:
             if f.length < p.lean_min_length:
                 continue
-            off = abs(math.degrees(_off_axis(f, self.angle)))
+            off = abs(math.degrees(_off_axis(_direction(f), self.angle)))
             if not p.lean_deg <= off <= p.max_angle_deg:
                 continue
             axis = self._refined([g for g in mapped if g is not f])
-            if axis is not None and p.lean_deg <= abs(math.degrees(_off_axis(f, axis))):
+            if axis is not None and p.lean_deg <= abs(math.degrees(_off_axis(_direction(f),
+                                                                               axis))):
                 return f
         return None
 
@@ -404,7 +405,7 @@ class _BuildingAxis:
         long = [g for g in walls if g.length >= 1.0]
         if not long:
             return None
-        offs = np.array([_off_axis(g, self.angle) for g in long])
+        offs = _off_axis(np.array([_direction(g) for g in long]), self.angle)
         lengths = np.array([g.length for g in long])
         near = np.abs(offs) <= math.radians(self.p.max_angle_deg)
         if lengths[near].sum() < self.p.lean_reference_length:
@@ -418,9 +419,12 @@ def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
     return float(values[order][np.searchsorted(cumulative, cumulative[-1] / 2)])
 
 
-def _off_axis(f: LinearFeature, axis: float) -> float:
-    """Angle (rad) of ``f`` off the nearest of the four directions of ``axis``."""
-    angle = math.atan2(f.p1[1] - f.p0[1], f.p1[0] - f.p0[0])
+def _direction(f: LinearFeature) -> float:
+    return math.atan2(f.p1[1] - f.p0[1], f.p1[0] - f.p0[0])
+
+
+def _off_axis(angle: np.ndarray | float, axis: float) -> np.ndarray | float:
+    """Angle(s) (rad) off the nearest of the four directions of ``axis``."""
     return (angle - axis + math.pi / 4) % (math.pi / 2) - math.pi / 4
 
 
