@@ -2,18 +2,23 @@
 in closed loop the turn round a wall end whose corner a straight-ahead check misses."""
 from __future__ import annotations
 
+import json
 import math
+import sys
 
 import numpy as np
 import pytest
 
-from blocks.navigate.collision_monitor import CollisionMonitor, MonitorParams, carry_points
+from blocks.navigate.collision_monitor import (CollisionMonitor, EchoMemory, MonitorParams,
+                                               carry_points)
 from blocks.navigate.guard import SonarGuard, swept_poses
 from sim2d.robot import load_robot
 from sim2d.simulation import Simulation
 from sim2d.world import load_world
 
-from conftest import floor_plan, write_world
+from conftest import ROOT, floor_plan, write_world
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
 ATRV = load_robot("atrv_mini")
 
@@ -132,3 +137,73 @@ def test_a_right_turn_round_a_wall_end_clips_it_unless_monitored(tmp_path, monit
         sim.command("r", v, w)
         sim.step(0.1)
     assert (robot.collisions > 0) == touches
+
+
+# ---- echoes located by their closing rate ----------------------------------------------------------
+@pytest.mark.parametrize("triangulate", [False, True])
+def test_an_echo_closing_as_fast_as_the_robot_drives_is_in_its_way(triangulate):
+    """A wall end straight ahead of the front corner, heard by the front-right sonar at the
+    inner edge of its cone until the echo is lost at a grazing angle: its arc reaches out to
+    the side, clear of the path; its closing rate puts it in the path."""
+    target = np.array([0.7, -0.24])  # world, the robot drives along y = 0
+    mount = ATRV.sonar_mounts[ATRV.sonar_names.index("FrRt1")]
+    memory = EchoMemory(guard(), MonitorParams(triangulate=triangulate))
+    for k in range(7):
+        pose = np.array([0.04 * k, 0.0, 0.0])
+        r = float(np.hypot(*(target - pose[:2] - mount[:2])))
+        memory.add(0.1 * k, pose, reading(FrRt1=r) if k < 6 else reading())
+    t = memory.collision_time(pose, 0.4, 0.0)
+    if triangulate:
+        assert t < 0.6
+    else:
+        assert t == math.inf
+
+
+def test_an_echo_beside_the_path_stays_beside_it():
+    """A door jamb 0.2 m right of the body's side closes slower than the robot drives:
+    located beside the path, it does not stop a robot driving through the door."""
+    memory = EchoMemory(guard(), MonitorParams(triangulate=True))
+    jamb = np.array([1.0, -0.45])
+    for k in range(12):
+        pose = np.array([0.04 * k, 0.0, 0.0])
+        ranges = reading(**{name: float(np.hypot(*(jamb - pose[:2] - m[:2])))
+                            for name, m in zip(ATRV.sonar_names, ATRV.sonar_mounts)
+                            if name in ("FrRt1", "FrRt2", "RtFr1")})
+        memory.add(0.1 * k, pose, ranges)
+        assert memory.collision_time(pose, 0.4, 0.0) == math.inf, k
+
+
+def recorded_run(folder, front: list[float], contact_tick: int | None):
+    """A run folder as a sweep records it: the robot drives straight on at 0.4 m/s while
+    its front sonars read ``front`` tick by tick (4 m: no echo)."""
+    folder.mkdir(parents=True)
+    n = len(front)
+    ranges = np.full((n, 16), ATRV.sonar.max_range)
+    for name in ("Fr1", "Fr2"):
+        ranges[:, ATRV.sonar_names.index(name)] = front
+    np.savez(folder / "sonar.npz", **{"robot@tick": np.arange(n), "robot@ranges": ranges,
+                                       "robot@echo": ranges < ATRV.sonar.max_range,
+                                       "robot@mounts": ATRV.sonar_mounts,
+                                       "robot@cone_deg": ATRV.sonar.cone_deg,
+                                       "robot@max_range": ATRV.sonar.max_range})
+    rows = "".join(f"{k},{k * 0.1:.1f},robot,{0.04 * k:.3f},0,0,{0.04 * k:.3f},0,0,0.4,0\n"
+                   for k in range(n))
+    (folder / "trajectory.csv").write_text(
+        "tick,time,robot,x,y,theta,odom_x,odom_y,odom_theta,v,w\n" + rows)
+    log = [] if contact_tick is None else [{"t": contact_tick * 0.1}]
+    (folder / "run.json").write_text(json.dumps({"metrics": {"world": {"collision_log": log}}}))
+
+
+def test_the_replay_counts_contacts_seen_coming_and_stops_where_nothing_was_hit(tmp_path):
+    from monitor_replay import replay_run
+    # a wall 2 m ahead, closing at 0.04 m a tick: touched at tick 48
+    wall = [max(2.0 - 0.04 * k, 0.1) for k in range(60)]
+    recorded_run(tmp_path / "wall", wall, contact_tick=48)
+    counts = replay_run(tmp_path / "wall", MonitorParams())
+    assert counts == {"foreseen": 1, "missed": 0, "moving": 2, "stopped": 0}  # ticks 10, 17
+    # a robot driving on against something touching its front, with no contact recorded:
+    # every moving tick sampled then is a stop
+    recorded_run(tmp_path / "open", [4.0] * 40 + [0.1] * 40, contact_tick=None)
+    counts = replay_run(tmp_path / "open", MonitorParams())
+    assert counts["foreseen"] == counts["missed"] == 0
+    assert counts["stopped"] == 5 and counts["moving"] == 10  # ticks 45, 52, ... 73 of 10..73

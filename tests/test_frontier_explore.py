@@ -15,6 +15,7 @@ from blocks.maps.features import sensor_poses_along
 from blocks.maps.logodds import InverseSonarModel, LogOddsMap
 from blocks.maps.mapio import OccupancyMap
 from blocks.navigate.grid import inflate
+from blocks.navigate.collision_monitor import MonitorParams
 from blocks.navigate.guard import SonarGuard
 from sim2d.robot import load_robot
 from sim2d.simulation import Simulation
@@ -156,6 +157,27 @@ def test_a_frontier_whose_way_keeps_failing_is_given_up_and_counted():
     assert run(explorer, robot, 600, ranges=np.array([0.2, 4.0])) is not None
     r = explorer.result
     assert r.end_reason == "explored" and r.goals_given_up == 1 and r.frontiers_given_up == 1
+
+
+def test_frontiers_given_up_are_tried_again_before_the_floor_counts_as_explored():
+    """The first way to the opening is blocked; by the time every other frontier is done,
+    the way is clear (a door that was shut, a person who stood there)."""
+    state = {"blocked": True}
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(max_attempts=2, back_off_time=0.3,
+                                              bump_memory=0.0, retry_given_up=1))
+    robot = PointRobot(2.0, 3.0)
+    for tick in range(1500):
+        ranges = np.array([0.2, 4.0]) if state["blocked"] else CLEAR
+        out = explorer.step(0.1 * tick, robot.pose, ranges, follower_done=True)
+        if explorer.result.goals_given_up:
+            state["blocked"] = False
+        if explorer.ended:
+            break
+        robot.move(*out)
+    r = explorer.result
+    assert r.frontiers_retried == 1 and any("retry" in e for e in r.log)
+    assert r.goals_reached >= 1 and robot.pose[0] > 4.5  # it went there after all
 
 
 def test_hold_stops_the_robot_and_the_follower_drives_until_its_loop_closes():
@@ -540,3 +562,123 @@ def test_a_free_standing_block_is_circled_once_and_left_for_the_rest_of_the_room
     assert (seen & free).sum() / free.sum() >= 0.85
     far = free & ((xc < 1.5) | (xc > 10.5))
     assert (seen & far).sum() / far.sum() >= 0.8
+
+
+# ---- with a collision monitor downstream ----------------------------------------------------------
+LEFT_BUMP = np.array([False, True, False, False])
+
+
+@pytest.mark.parametrize("monitored", [False, True])
+def test_a_side_bumper_held_while_driving_on_is_one_bump_when_a_monitor_drives(monitored):
+    """Pressed against a wall by its side, the robot may still drive along it; without a
+    monitor to stop it pushing on, every tick the bumper is held fails the way."""
+    params = ExploreParams(monitor=MonitorParams() if monitored else None, max_failures=50,
+                           bump_memory=0.0)
+    explorer = FrontierExplorer(lambda: room_map(), GUARD, params, bumpers=SPANS)
+    robot = PointRobot(2.0, 3.0)
+    for tick in range(120):
+        out = explorer.step(0.1 * tick, robot.pose, CLEAR, follower_done=True,
+                            bumpers=LEFT_BUMP if tick >= 20 else NO_BUMP)
+        robot.move(*out)
+    bumped = [e for e in explorer.result.log if e.get("failed") == "bumped left"]
+    if monitored:
+        assert explorer.result.bumps == 1 and len(bumped) == 1
+        assert robot.pose[0] > 3.5  # it drove on along the wall
+    else:
+        assert explorer.result.bumps > 10 and explorer.result.goals_given_up == 1
+        assert robot.pose[0] < 3.0
+
+
+def test_with_a_monitor_the_explorer_refuses_the_motions_the_monitor_would_stop():
+    guard = SonarGuard.for_robot(ATRV)
+    echo = reading("LtFr", 0.1)  # beside the front left corner, outside the straight lane
+    plain = FrontierExplorer(lambda: room_map(), guard)
+    monitored = FrontierExplorer(lambda: room_map(), guard, ExploreParams(monitor=MonitorParams()))
+    for explorer in (plain, monitored):
+        explorer.step(0.0, np.array([2.0, 3.0, 0.0]), echo)
+    assert plain._blocked(echo, 0.3, 0.8) == ""  # the strip ahead is clear
+    assert monitored._blocked(echo, 0.3, 0.8) == "ahead"  # the curve swings the body onto it
+    assert monitored._blocked(echo, 0.3, 0.0) == ""  # straight on passes beside it
+    # the echo is remembered after it is gone (a corner seen at a grazing angle comes and goes)
+    monitored.step(0.1, np.array([2.0, 3.0, 0.0]), np.full(16, 4.0))
+    assert monitored._blocked(np.full(16, 4.0), 0.3, 0.8) == "ahead"
+
+
+def test_a_follower_the_monitor_keeps_stopping_is_backed_off_and_then_taken_over():
+    """The monitor frees a stopped robot blindly after a second; a follower that turns
+    back into the same wall end would touch it again each time."""
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(stale_distance=0.0, monitor=MonitorParams()),
+                                bumpers=SPANS)
+    pose = np.array([2.0, 3.0, 0.0])
+
+    def held_then_released(start: float) -> list:
+        held = [explorer.step(start + 0.1 * k, pose, CLEAR, bumpers=NO_BUMP, follower_v=0.4,
+                              monitor_scale=0.0 if k else 1.0) for k in range(10)]
+        # released, it creeps on (too slowly to count as stalled where it stands)
+        return held + [explorer.step(start + 1.0 + 0.1 * k, pose, CLEAR, bumpers=NO_BUMP,
+                                     follower_v=0.05) for k in range(30)]
+
+    commands = held_then_released(0.0)
+    assert commands[:8] == [None] * 8 and commands[9] is not None  # 0.8 s stopped: held
+    assert explorer.result.holds == 1 and explorer.result.log[-1]["follower"] == "held"
+    assert any(c is not None and c[0] < 0 for c in commands)  # backed off
+    assert commands[-1] is None and explorer.result.started is None  # and handed back
+    held_then_released(5.0)  # held again at the same place: backed off once more
+    assert explorer.result.holds == 2 and explorer.result.started is None
+    held_then_released(10.0)  # a third time: a cycle
+    assert explorer.result.start_reason == "follower jammed"
+
+
+@pytest.mark.parametrize("monitored", [False, True])
+def test_a_robot_pinned_by_its_side_backs_along_the_wall_until_it_can_turn(monitored):
+    """Flush against a wall on its right, with a wall ahead: it can neither turn nor go on,
+    so each way planned from there fails at once; it backs along the wall instead."""
+    guard = SonarGuard.for_robot(ATRV)
+
+    def ranges(pose):
+        r = np.full(16, 4.0)
+        if pose[0] > 1.6:
+            r[[ATRV.sonar_names.index(n) for n in ("Fr1", "Fr2")]] = 0.2
+        if pose[0] > 1.2:
+            r[[ATRV.sonar_names.index(n) for n in ("Rt1", "Rt2")]] = 0.1
+        return r
+
+    params = ExploreParams(monitor=MonitorParams() if monitored else None, max_failures=3,
+                           max_attempts=10,
+                           bump_memory=0.0)
+    explorer = FrontierExplorer(lambda: room_map(), guard, params)
+    robot = PointRobot(2.0, 3.0)
+    least_x = robot.pose[0]
+    for tick in range(150):
+        out = explorer.step(0.1 * tick, robot.pose, ranges(robot.pose), follower_done=True)
+        if out is None:
+            break
+        robot.move(*out)
+        least_x = min(least_x, robot.pose[0])
+    unpinned = [e for e in explorer.result.log if "unpin" in e]
+    if monitored:
+        assert unpinned and least_x < 1.2  # backed 0.8 m, past the wall's end
+    else:
+        assert not unpinned and least_x > 1.5  # back-offs of 0.2 m, then stuck
+        assert explorer.result.end_reason == "stuck"
+
+
+def test_a_curve_only_the_monitor_would_stop_is_crept_round_not_failed():
+    class Curving:  # a way whose pursuit asks for a left curve
+        remaining, progress = 3.0, 0.0
+
+        def step(self, pose, speed):
+            return 0.3, 0.8, "turning"
+
+    guard = SonarGuard.for_robot(ATRV)
+    explorer = FrontierExplorer(lambda: room_map(), guard, ExploreParams(monitor=MonitorParams()))
+    pose = np.array([2.0, 3.0, 0.0])
+    explorer.step(0.0, pose, np.full(16, 4.0), follower_done=True)
+    assert explorer.phase == "drive"
+    explorer._leg = Curving()
+    echo = reading("LtFr", 0.1)  # beside the front left corner: the curve swings onto it
+    v, w = explorer.step(0.1, pose, echo, follower_done=True)
+    assert explorer.phase == "drive" and not any("failed" in e for e in explorer.result.log)
+    assert (v, w) != (0.3, 0.8) and abs(v) <= 0.15 + 1e-9 and abs(w) <= 0.6 + 1e-9
+    assert explorer._echoes.collision_time(pose, v, w) == math.inf

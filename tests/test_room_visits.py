@@ -11,9 +11,11 @@ from blocks.core.block import RunContext
 from blocks.core.errors import BlockError
 from blocks.maps.mapio import OccupancyMap
 from blocks.navigate.grid import inflate, inflate_occupied, unblock_traversed
+from blocks.navigate.legs import Leg
 from blocks.navigate.planner import PlanningError, plan
-from blocks.navigate.rooms import (DoorEstimate, RoomVisitor, SignRef, find_door, free_run,
-                                   next_look, room_box, unseen_nearby)
+from blocks.navigate.pursuit import PurePursuit
+from blocks.navigate.rooms import (DoorEstimate, RoomVisitor, RoomVisitParams, SignRef,
+                                   find_door, free_run, next_look, room_box, unseen_nearby)
 from sim2d.robot import load_robot
 from sim2d.simulation import Simulation
 from sim2d.world import load_world
@@ -286,3 +288,32 @@ def test_bad_signs_and_params_are_reported_with_the_field():
     with pytest.raises(BlockError) as err:
         make_block(depth_min=2.0, depth_max=1.0)
     assert "depth_max" in str(err.value)
+
+
+# ---- with a collision monitor downstream ------------------------------------------------------------
+def test_a_leg_the_monitor_keeps_stopping_is_held_and_a_pause_is_not():
+    leg = Leg(PurePursuit(np.array([[0.0, 0.0], [5.0, 0.0]])), started=0.0)
+    pose = np.zeros(3)
+    assert leg.step(0.0, pose, timeout=60.0, stall_time=10.0, held_time=0.8)[2] == ""
+    outcomes = [leg.step(0.1 * k, pose, timeout=60.0, stall_time=10.0, scale=0.0,
+                         held_time=0.8)[2] for k in range(1, 12)]
+    assert outcomes[:7] == [""] * 7 and outcomes[8] == "held"  # 0.8 s after the first stop
+    # scaled down but moving is not held; nor is a monitor with nothing asked of it
+    leg = Leg(PurePursuit(np.array([[0.0, 0.0], [5.0, 0.0]])), started=0.0)
+    assert all(leg.step(0.1 * k, pose, timeout=60.0, stall_time=10.0, scale=0.3,
+                        held_time=0.8)[2] == "" for k in range(20))
+
+
+def test_a_visit_held_on_its_way_to_the_door_ends_failed_at_once():
+    local = corridor_and_room()
+    positions = np.array([[0.5, 6.0], [2.0, 6.0]])
+    visitor = RoomVisitor(lambda since, near: (local, positions),
+                          RoomVisitParams(held_time=0.8))
+    visitor.add_sign(SIGN, 0.0)
+    pose = np.array([0.8, 6.0, 0.0])
+    assert visitor.step(0.0, pose) is not None and visitor.phase == "enter"
+    for k in range(1, 12):  # whatever it asks, the monitor lets none of it through
+        visitor.step(0.1 * k, pose, scale=0.0)
+    assert visitor.phase == "idle"
+    result = visitor.results[-1]
+    assert result.status == "failed" and "held by the collision monitor" in result.reason

@@ -267,7 +267,11 @@ class FrontierExploration(Block):
               "bumpers": Port.array("bool", (None,), required=False, default=None,
                                     frame="robot", doc="the contact switches pressed now "
                                                        "(sim2d.bumpers), in the robot "
-                                                       "file's order")}
+                                                       "file's order"),
+              "monitor_scale": Port.scalar("float64", required=False, default=1.0,
+                                           doc="how much of the last command the collision "
+                                               "monitor let through (its 'scale', with a "
+                                               "delay of 1; with 'monitored')")}
     outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity"),
                "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity (CCW +)"),
                "exploring": Port.scalar("bool", doc="true while the frontier explorer drives"),
@@ -308,6 +312,15 @@ class FrontierExploration(Block):
                                 unit="m", min=0.0),
         "stale_gain": Param(float, 2.0, "...new floor meaning at least this much known area",
                             unit="m^2", min=0.0),
+        "retry_given_up": Param(int, 0, "rounds of trying again the frontiers given up after "
+                                        "failed ways, once no other is left (0: end "
+                                        "'explored' without them)", min=0),
+        "monitored": Param(bool, False, "a navigate.collision_monitor (default settings) stands "
+                                        "between this block and the wheels: judge every "
+                                        "motion as it will, and count a bumper that stays "
+                                        "pressed as one bump"),
+        "triangulate": Param(bool, False, "with 'monitored': the monitor locates near echoes "
+                                          "by their closing rate (its 'triangulate')"),
     }
     category = "explore"
 
@@ -315,6 +328,7 @@ class FrontierExploration(Block):
         from blocks.navigate.pursuit import PursuitParams
 
         from .explorer import ExploreParams
+        from blocks.navigate.collision_monitor import MonitorParams
         from blocks.navigate.guard import SonarGuard
         spec = _robot_spec(self.p.robot)
         self._guard = SonarGuard.for_robot(spec, ahead=self.p.stop_distance)
@@ -333,6 +347,10 @@ class FrontierExploration(Block):
                                      stale_distance=self.p.stale_distance,
                                      stale_gain=self.p.stale_gain,
                                      wall_margin=self.p.wall_margin,
+                                     retry_given_up=self.p.retry_given_up,
+                                     monitor=(MonitorParams(min_range=spec.sonar.min_range,
+                                                            triangulate=self.p.triangulate)
+                                              if self.p.monitored else None),
                                      trail_time=(math.inf if self.p.trail_time < 0
                                                  else self.p.trail_time))
 
@@ -354,7 +372,8 @@ class FrontierExploration(Block):
     def step(self, pose: np.ndarray, ranges: np.ndarray, map: Any,  # noqa: A002
              v_in: float, w_in: float, follower_done: bool = False, hold: bool = False,
              preempted: bool = False, bumpers: np.ndarray | None = None,
-             odometry: np.ndarray | None = None) -> dict[str, Any]:
+             odometry: np.ndarray | None = None,
+             monitor_scale: float = 1.0) -> dict[str, Any]:
         if not self.p.enabled:
             return {"v": float(v_in), "w": float(w_in), "exploring": False,
                     "done": bool(follower_done)}
@@ -367,7 +386,9 @@ class FrontierExploration(Block):
         command = self.explorer.step(self.ctx.time, pose, np.asarray(ranges),
                                      follower_done=bool(follower_done), hold=bool(hold),
                                      preempted=bool(preempted), bumpers=bumpers,
-                                     follower_v=float(v_in), odometry=odometry)
+                                     follower_v=float(v_in), follower_w=float(w_in),
+                                     odometry=odometry,
+                                     monitor_scale=float(monitor_scale))
         done = self.explorer.ended
         if command is None:
             if done:

@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from blocks.navigate.collision_monitor import EchoMemory, MonitorParams
 from blocks.navigate.doorway import Doorway, doorway_legs, find_doorway
 from blocks.navigate.grid import NavGrid, cells_near, inflate, unblock_traversed
 from blocks.navigate.guard import SonarGuard
@@ -106,6 +107,42 @@ class ExploreParams:
     nudge_speed, nudge_time
         Too close to something to turn on the spot, the robot first eases
         straight away from it at this speed, for at most this long (s) a way.
+    monitor
+        The settings of the collision monitor
+        (:mod:`blocks.navigate.collision_monitor`) that stands between this
+        explorer and the wheels, or None if none does.  With one, every motion
+        the explorer considers (a way's next command, a back-off, a nudge, a
+        turn) is also judged as the monitor will judge it, on the same
+        remembered echoes and swept footprint: a motion the monitor would stop
+        is blocked here too, so the explorer plans round it instead of asking
+        for it until it counts as a stall.  And a bumper that stays pressed is
+        one bump, not one a tick: the monitor keeps the robot from pushing on
+        into what it touches, and a robot pressed against a wall by its side
+        may still drive along it; failing every new way at once would end the
+        run ``stuck`` where it is not.  For the same reason a back-off goes on
+        (up to ``unpin_time``) while the robot could turn neither way: pressed
+        flush against a wall by its side, any turn swings a corner into it,
+        and each way planned from there would fail at once.
+    unpin_time
+        See ``monitor``.
+    retry_given_up
+        When no frontier is left but those given up after failed ways, try
+        them again, up to this many rounds: the map and the robot's place
+        have changed since, and ending ``explored`` with the rest of the
+        floor behind them leaves it unmapped.  0: never.
+    held_time
+        With a monitor: stopped by it this long (s) while asking to move is
+        trouble like a stall (``held``), with the follower driving too.  The
+        monitor gets the robot out of a corner by itself after a second, but
+        blindly: a follower that turns back into the same wall end is stopped,
+        freed and stopped again, touching it each time.  The follower is
+        backed off and turned away; held a third time at one place, it is
+        taken over.  On the explorer's own ways, a command only the monitor
+        would stop (a corner the curve swings onto) is replaced by the
+        nearest slow motion it lets through
+        (:meth:`~blocks.navigate.collision_monitor.EchoMemory.nearest_clear`),
+        without failing the way: a way is failed for a stop the guard
+        itself sees, or for no progress.
     door_narrow, door_approach, door_speed
         A way that passes nearer than ``door_narrow`` (m) to walls on both
         sides goes through a doorway (:mod:`blocks.navigate.doorway`): the
@@ -190,6 +227,10 @@ class ExploreParams:
     door_narrow: float = 0.45
     door_approach: float = 0.7
     door_speed: float = 0.2
+    monitor: MonitorParams | None = None
+    held_time: float = 0.8
+    unpin_time: float = 8.0
+    retry_given_up: int = 0
 
 
 @dataclass
@@ -208,8 +249,10 @@ class ExploreResult:
     retraces: int = 0
     bumps: int = 0
     stalls: int = 0
+    holds: int = 0
     frontiers_out_of_reach: int = 0
     frontiers_given_up: int = 0
+    frontiers_retried: int = 0
     distance: float = 0.0
     log: list[dict[str, Any]] = field(default_factory=list)
 
@@ -252,7 +295,7 @@ class FrontierExplorer:
         self.p = params or ExploreParams()
         self.pursuit = pursuit or PursuitParams()
         self.result = ExploreResult()
-        # follow, plan, drive, align, back_off, spin, escape, turn_away, ended
+        # follow, plan, drive, align, back_off, unpin, spin, escape, turn_away, ended
         self.phase = "follow"
         self.target: FrontierGoal | None = None
         self._leg: PurePursuit | None = None
@@ -260,6 +303,10 @@ class FrontierExplorer:
         self._squeeze = False  # this leg goes through a doorway
         self._align_heading = 0.0
         self._narrow_guard = replace(guard, side_margin=0.0)
+        self._echoes = None if self.p.monitor is None else EchoMemory(guard, self.p.monitor)
+        self._held: set[int] = set()  # bumpers pressed on the last tick
+        self._stopped_since: float | None = None  # held still by the monitor since
+        self._unpin_until = 0.0
         self._door_pursuit = replace(self.pursuit, cruise=min(self.p.door_speed,
                                                              self.pursuit.cruise))
         self._occupancy: Any = None  # the map the last goals were chosen on
@@ -274,6 +321,7 @@ class FrontierExplorer:
         self._forgotten: list[tuple[float, float]] = []  # reached or given up
         self._given_up: list[tuple[float, float]] = []
         self._given_up_left = 0
+        self._retry_rounds = 0
         self._looks: list[tuple[float, float]] = []  # where it looked round
         self._spun = self._heading = 0.0
         self._track: list[tuple[float, float, float]] = []  # time, x, y every 0.1 m
@@ -282,11 +330,13 @@ class FrontierExplorer:
         self._last: np.ndarray | None = None
         self._commands: list[tuple[float, float, float, float]] = []  # time, x, y, v asked
         self._command = (0.0, 0.0)  # what this machine asked for last tick
+        self._asked = (0.0, 0.0)  # what this machine or the follower asked for last tick
         self._odometry = np.zeros(3)  # the raw odometry pose of this tick
         self._bumps: list[tuple[float, float]] = []  # what the body touched or the guard heard
         self._nudged = 0.0
         self._follower_trouble: list[float] = []
         self._trouble_spots: list[tuple[float, float]] = []
+        self._hold_spots: list[tuple[float, float]] = []
         self._escape_until = self._turn_until = 0.0
         self._escape_speed = self._escape_turn = 0.0
         self._after_escape = "plan"
@@ -305,24 +355,32 @@ class FrontierExplorer:
     def step(self, time: float, pose: np.ndarray, ranges: np.ndarray, *,
              follower_done: bool = False, hold: bool = False, preempted: bool = False,
              bumpers: np.ndarray | None = None, follower_v: float = 0.0,
-             odometry: np.ndarray | None = None) -> tuple[float, float] | None:
+             follower_w: float = 0.0, odometry: np.ndarray | None = None,
+             monitor_scale: float = 1.0) -> tuple[float, float] | None:
         """This tick's velocities, or None while the follower drives.
 
         ``hold`` stops the robot (a sign is being read); ``preempted`` says
         another behaviour drives this tick (a room visit), so the way is
         planned again afterwards from wherever the robot then is.
-        ``bumpers`` are the contact switches now; ``follower_v`` is what the
-        follower asks for (a stall is a command odometry does not see).
+        ``bumpers`` are the contact switches now; ``follower_v`` and
+        ``follower_w`` are what the follower asks for (a stall is a command
+        odometry does not see).
         ``odometry`` is the raw odometry pose when ``pose`` is corrected
         against the map: a stall is judged on it, as a correction can move
-        ``pose`` while the wheels stand still.
+        ``pose`` while the wheels stand still.  ``monitor_scale`` is how much
+        of the last tick's command the collision monitor let through (with
+        ``params.monitor`` set; 0: it stopped the robot).
         """
         pose = np.asarray(pose, dtype=np.float64)
         self._odometry = pose if odometry is None else np.asarray(odometry, dtype=np.float64)
+        if self._echoes is not None:
+            self._echoes.add(time, self._odometry, ranges)
         self._remember(time, pose)
+        self._note_monitor(time, monitor_scale)
         command = self._decide(time, pose, ranges, follower_done, hold, preempted, bumpers,
                                follower_v)
         self._command = command if command is not None else (follower_v, 0.0)
+        self._asked = command if command is not None else (follower_v, follower_w)
         return command
 
     def _decide(self, time: float, pose: np.ndarray, ranges: np.ndarray, follower_done: bool,
@@ -332,7 +390,7 @@ class FrontierExplorer:
             return None
         if self.phase in ("escape", "turn_away"):
             return self._escape(time, pose, ranges, bumpers)
-        trouble = "" if hold or preempted else self._trouble(time, pose, bumpers)
+        trouble = "" if hold or preempted else self._trouble(time, pose, ranges, bumpers)
         if self.phase == "follow":
             if trouble:
                 return self._follower_trouble_at(time, pose, trouble, follower_done)
@@ -353,6 +411,8 @@ class FrontierExplorer:
             return self._start_escape(time, "plan") if self.phase != "ended" else None
         if self.phase == "back_off":
             return self._back_off(time, ranges, bumpers)
+        if self.phase == "unpin":
+            return self._unpin(time, ranges, bumpers)
         if self.phase == "spin":
             return self._spin(pose)
         if self.phase == "align":
@@ -370,15 +430,32 @@ class FrontierExplorer:
         self.result.started, self.result.start_reason = time, reason
 
     # ---- contact and stalls ---------------------------------------------------------------
-    def _trouble(self, time: float, pose: np.ndarray, bumpers: np.ndarray | None) -> str:
-        """'bumped NAME' or 'stalled' if the robot is touching something or cannot move, else ''."""
+    def _note_monitor(self, time: float, scale: float) -> None:
+        """Keep when the monitor began holding still a command that asked to move."""
+        v, w = self._asked
+        if self.p.monitor is None or scale > 0.0 or (abs(v) < 1e-6 and abs(w) < 1e-6):
+            self._stopped_since = None
+        elif self._stopped_since is None:
+            self._stopped_since = time
+
+    def _trouble(self, time: float, pose: np.ndarray, ranges: np.ndarray,
+                 bumpers: np.ndarray | None) -> str:
+        """'bumped NAME', 'stalled' or 'held' if the robot is touching something, cannot
+        move or is kept from moving, else ''."""
         pressed = [] if bumpers is None else [k for k, on in enumerate(bumpers) if on]
+        if self.p.monitor is not None:  # a bumper that stays pressed was one bump
+            pressed, self._held = [k for k in pressed if k not in self._held], set(pressed)
         if pressed:
             for k in pressed:
                 self._remember_touch(pose, *self.bumpers[k][1:])
             self.result.bumps += 1
             return "bumped " + "+".join(self.bumpers[k][0] for k in pressed)
         v = self._command[0]
+        if self._stopped_since is not None and time - self._stopped_since >= self.p.held_time:
+            self._stopped_since = None
+            self.result.holds += 1
+            self._remember_blocked(pose, ranges, v)
+            return "held"
         odometry = self._odometry
         self._commands.append((time, float(odometry[0]), float(odometry[1]), v))
         while self._commands and self._commands[0][0] < time - self.p.stall_window:
@@ -412,10 +489,14 @@ class FrontierExplorer:
                              follower_done: bool) -> tuple[float, float]:
         """The follower bumped or stalled: escape and hand back, or take over if it keeps on."""
         here = (float(pose[0]), float(pose[1]))
-        again = self._near(here, self._trouble_spots)  # the same place: a cycle
-        self._trouble_spots.append(here)
-        self._follower_trouble = [t for t in self._follower_trouble
-                                  if t >= time - self.p.follower_bump_window] + [time]
+        if why == "held":  # the monitor kept it from touching: a cycle only the third time here
+            again = sum(self._near(here, [spot]) for spot in self._hold_spots) >= 2
+            self._hold_spots.append(here)
+        else:
+            again = self._near(here, self._trouble_spots)  # the same place: a cycle
+            self._trouble_spots.append(here)
+            self._follower_trouble = [t for t in self._follower_trouble
+                                      if t >= time - self.p.follower_bump_window] + [time]
         self.result.log.append({"t": round(time, 1), "follower": why,
                                 "at": [round(float(v), 2) for v in pose[:2]]})
         if follower_done or again or len(self._follower_trouble) >= self.p.follower_bumps:
@@ -445,11 +526,11 @@ class FrontierExplorer:
             v = self._escape_speed
             touching = bumpers is not None and any(
                 on and self._faces(k, v) for k, on in enumerate(bumpers))
-            if time < self._escape_until and not touching and not self.guard.blocked(
+            if time < self._escape_until and not touching and not self._blocked(
                     ranges, v, self._escape_turn):
                 return v, self._escape_turn
             self.phase = "turn_away"
-        if time < self._turn_until and not self.guard.blocked(ranges, 0.0, self.p.spin_rate):
+        if time < self._turn_until and not self._blocked(ranges, 0.0, self.p.spin_rate):
             return 0.0, self.p.spin_rate
         self._commands.clear()
         self.phase = self._after_escape
@@ -598,9 +679,21 @@ class FrontierExplorer:
             self.phase, self._spun, self._heading = "spin", 0.0, float(pose[2])
             self._looks.append((float(pose[0]), float(pose[1])))
             return False
+        if self._given_up_left and self._retry_rounds < self.p.retry_given_up:
+            self._retry_given_up(time)
+            return False
         self.result.frontiers_given_up = self._given_up_left
         self._end(time, "explored")
         return False
+
+    def _retry_given_up(self, time: float) -> None:
+        """Forget that the frontiers given up were given up: they are chosen again."""
+        self._retry_rounds += 1
+        self.result.frontiers_retried += self._given_up_left
+        self.result.log.append({"t": round(time, 1), "retry": self._given_up_left})
+        self._forgotten = [g for g in self._forgotten if not self._near(g, self._given_up)]
+        self._attempts = [(xy, n) for xy, n in self._attempts if not self._near(xy, self._given_up)]
+        self._given_up = []
 
     def _looked_here(self, pose: np.ndarray) -> bool:
         return self._near((float(pose[0]), float(pose[1])), self._looks)
@@ -669,7 +762,7 @@ class FrontierExplorer:
         error = math.remainder(self._align_heading - float(pose[2]), 2 * math.pi)
         w = float(np.clip(2.0 * error, -self.p.spin_rate, self.p.spin_rate))
         if abs(error) < 0.05 or time - self._progress_time > self.p.stall_time \
-                or self.guard.blocked(ranges, 0.0, w):
+                or self._blocked(ranges, 0.0, w):
             self._next_leg(time)  # facing it (or as near as the guard lets it turn)
             return 0.0, 0.0
         return 0.0, w
@@ -692,13 +785,19 @@ class FrontierExplorer:
             if not self._next_leg(time):
                 self._reached(time)
             return 0.0, 0.0
-        guard = self._narrow_guard if self._squeeze else self.guard
-        why = guard.blocked(ranges, v, w)
+        why = self._blocked(ranges, v, w, narrow=self._squeeze)
+        if why and self._echoes is not None and not (
+                self._narrow_guard if self._squeeze else self.guard).blocked(ranges, v, w):
+            # only the monitor would stop it (a corner the curve swings onto): creep the
+            # nearest way it lets through, as it would itself after a second, and keep the way
+            creep = self._echoes.nearest_clear(self._odometry, v, w)
+            if creep is not None:
+                return creep
         touched = None if why else self._touched_in_sweep(pose, v, w)
         if touched is not None and self._nudged < self.p.nudge_time:
             # a wall end the sonar misses, found by touching it, is in the corners' sweep
             nudge = -self.p.nudge_speed if touched[0] > 0 else self.p.nudge_speed
-            if not self.guard.blocked(ranges, nudge, 0.0):
+            if not self._blocked(ranges, nudge, 0.0):
                 self._nudged += 0.1
                 return nudge, 0.0
         if why == "turning":  # too close to something to turn: ease away from it first
@@ -729,6 +828,15 @@ class FrontierExplorer:
                 return 0.0, 0.0
         return float(v), float(w)
 
+    def _blocked(self, ranges: np.ndarray, v: float, w: float, narrow: bool = False) -> str:
+        """Why the motion (v, w) is refused: by the sonar guard on this tick's echoes (its
+        lane no wider than the body if ``narrow``), or as the collision monitor downstream
+        would stop it (``ahead``, ``behind`` or ``turning``); '' if it may go."""
+        why = (self._narrow_guard if narrow else self.guard).blocked(ranges, v, w)
+        if why or self._echoes is None or not self._echoes.stops(self._odometry, v, w):
+            return why
+        return "ahead" if v > 1e-3 else "behind" if v < -1e-3 else "turning"
+
     def _touched_in_sweep(self, pose: np.ndarray, v: float, w: float) -> np.ndarray | None:
         """The nearest remembered touch (robot frame) that a sharp turn (on the spot, or
         on a circle smaller than the corners') would sweep into, or None: the sonar
@@ -756,7 +864,7 @@ class FrontierExplorer:
             return None
         nearest = points[int(np.argmin(np.hypot(points[:, 0], points[:, 1])))]
         v = -self.p.nudge_speed if nearest[0] > 0 else self.p.nudge_speed
-        return None if self.guard.blocked(ranges, v, 0.0) else (v, 0.0)
+        return None if self._blocked(ranges, v, 0.0) else (v, 0.0)
 
     def _remember_blocked(self, pose: np.ndarray, ranges: np.ndarray, v: float) -> None:
         """Put the echo that stopped the robot on the planning grid (the map may have missed it).
@@ -788,7 +896,32 @@ class FrontierExplorer:
         v = -self.p.back_off_speed
         touching = bumpers is not None and any(
             on and self._faces(k, v) for k, on in enumerate(bumpers))
-        if time >= self._back_until or touching or self.guard.blocked(ranges, v, 0.0):
+        if touching or self._blocked(ranges, v, 0.0):
+            self.phase = "plan"
+            return 0.0, 0.0
+        if time >= self._back_until:
+            self.phase = "plan"
+            if self.p.monitor is not None and self._pinned(ranges):
+                self.phase, self._unpin_until = "unpin", time + self.p.unpin_time
+                self.result.log.append({"t": round(time, 1), "unpin": "backing along the wall",
+                                        "at": [round(float(x), 2) for x in self._last[:2]]})
+            return 0.0, 0.0
+        return v, 0.0
+
+    def _pinned(self, ranges: np.ndarray) -> bool:
+        """Whether the robot can turn on the spot neither way."""
+        return bool(self._blocked(ranges, 0.0, self.p.spin_rate)
+                    and self._blocked(ranges, 0.0, -self.p.spin_rate))
+
+    def _unpin(self, time: float, ranges: np.ndarray,
+               bumpers: np.ndarray | None) -> tuple[float, float]:
+        """Back straight along what pins the robot until it can turn (or for ``unpin_time``)."""
+        v = -self.p.back_off_speed
+        touching = bumpers is not None and any(
+            on and self._faces(k, v) for k, on in enumerate(bumpers))
+        if time >= self._unpin_until or touching or self._blocked(ranges, v, 0.0) \
+                or not self._pinned(ranges):
+            self._progress_time = time
             self.phase = "plan"
             return 0.0, 0.0
         return v, 0.0
@@ -871,7 +1004,7 @@ class FrontierExplorer:
         v, w, status = self._leg.step(rear, 0.0)
         v = -v
         if status == "arrived" or time > self._retrace_until \
-                or self.guard.blocked(ranges, v, w):
+                or self._blocked(ranges, v, w):
             self._leg = None
             self._failures = 0  # it got out (or as far as the track lets it)
             self._streak.clear()

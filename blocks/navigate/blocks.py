@@ -245,7 +245,11 @@ class RoomVisits(Block):
                                      doc="the explorer is done (e.g. its loop closed)"),
               "plates": Port.message(required=False, default=None,
                                      doc="plates worth a better view (signs.seek's wanted: "
-                                         "[{key, x, y, facing, top}])")}
+                                         "[{key, x, y, facing, top}])"),
+              "monitor_scale": Port.scalar("float64", required=False, default=1.0,
+                                           doc="how much of the last command the collision "
+                                               "monitor let through (its 'scale', with a "
+                                               "delay of 1; with 'monitored')")}
     outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity"),
                "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity (CCW +)"),
                "visiting": Port.scalar("bool", doc="true while a visit or a plate view drives "
@@ -284,6 +288,10 @@ class RoomVisits(Block):
         "spin_rate": Param(float, 1.2, "turn rate of the look-around", unit="rad/s", min=0.05),
         "plate_views": Param(bool, True, "go back for a readable view of the plates the seeker "
                                          "saw only at a grazing angle"),
+        "monitored": Param(bool, False, "a navigate.collision_monitor stands between this block "
+                                        "and the wheels: a leg it stops for 'held_time' is "
+                                        "given up"),
+        "held_time": Param(float, 0.8, "see 'monitored'", unit="s", min=0.1),
     }
 
     def setup(self) -> None:
@@ -296,6 +304,7 @@ class RoomVisits(Block):
                              hint="Make depth_max at least depth_min.")
         from .guard import SonarGuard
         spec = load_robot(self.p.robot)
+        self._held_time = self.p.held_time if self.p.monitored else math.inf
         self._mounts = np.asarray(spec.sonar_mounts, dtype=np.float64)
         self._guard = SonarGuard.for_robot(spec)
         self._cone, self._max_range = spec.sonar.cone_deg, spec.sonar.max_range
@@ -309,13 +318,13 @@ class RoomVisits(Block):
                                        give_up_distance=self.p.give_up_distance,
                                        window=self.p.window, radius=self.p.radius,
                                        leg_timeout=self.p.leg_timeout,
-                                       spin_rate=self.p.spin_rate)
+                                       spin_rate=self.p.spin_rate, held_time=self._held_time)
 
     def reset(self) -> None:
         from blocks.maps.local import LocalMaps
         from blocks.maps.offline import OfflineMapParams
 
-        from .plate_views import PlateViewer
+        from .plate_views import PlateViewer, PlateViewParams
         from .rooms import RoomVisitor
         self._maps = LocalMaps(self._mounts, cone_deg=self._cone, max_range=self._max_range,
                                params=OfflineMapParams(resolution=self.p.map_resolution,
@@ -323,7 +332,8 @@ class RoomVisits(Block):
         self._builds: list[float] = []
         self._version: Any = None
         self.visitor = RoomVisitor(self._map_since, self._params, self._pursuit)
-        self.viewer = PlateViewer(self._map_since, self._guard, pursuit=self._pursuit)
+        self.viewer = PlateViewer(self._map_since, self._guard, pursuit=self._pursuit,
+                                  params=PlateViewParams(held_time=self._held_time))
         self._plates_seen: Any = None
 
     def _map_since(self, since: float, near: tuple[float, float]):
@@ -368,7 +378,7 @@ class RoomVisits(Block):
 
     def step(self, pose: np.ndarray, ranges: np.ndarray, v_in: float, w_in: float,
              signs: Any = None, hold: bool = False, done_in: bool = False,
-             plates: list | None = None) -> dict[str, Any]:
+             plates: list | None = None, monitor_scale: float = 1.0) -> dict[str, Any]:
         if not self.p.enabled:
             return {"v": float(v_in), "w": float(w_in), "visiting": False,
                     "done": bool(done_in), "look_at": None}
@@ -380,12 +390,13 @@ class RoomVisits(Block):
         # one at a time: a plate view under way first, then a room visit, then a plate view
         command = None
         if not self.viewer.active:
-            command = self.visitor.step(self.ctx.time, pose, hold=bool(hold))
+            command = self.visitor.step(self.ctx.time, pose, hold=bool(hold),
+                                        scale=float(monitor_scale))
         if command is None and not self.visitor.visiting:
             known = [] if signs is None or not (self.viewer.active or self.viewer.queue) \
                 else [(float(s["x"]), float(s["y"])) for s in signs.current()]
             command = self.viewer.step(self.ctx.time, pose, ranges, hold=bool(hold),
-                                       signs=known)
+                                       signs=known, scale=float(monitor_scale))
         look_at = None if self.viewer.look_at is None else {"key": self.viewer.look_at.key}
         busy = self.visitor.visiting or self.viewer.active
         done = bool(done_in) and not busy and not self.visitor.pending \
@@ -442,6 +453,9 @@ class CollisionMonitorBlock(Block):
                         min=0.0, max=0.3),
         "memory": Param(float, 1.0, "echoes this recent count, carried along by odometry",
                         unit="s", min=0.0),
+        "triangulate": Param(bool, False, "also locate near echoes by how fast their ranges "
+                                          "close as the robot drives "
+                                          "(navigate.sonar_triangulation)"),
     }
 
     def setup(self) -> None:
@@ -453,7 +467,8 @@ class CollisionMonitorBlock(Block):
         self._guard = SonarGuard.for_robot(spec)
         self._params = MonitorParams(time_before_collision=self.p.time_before_collision,
                                      margin=self.p.margin, memory=self.p.memory,
-                                     min_range=spec.sonar.min_range)
+                                     min_range=spec.sonar.min_range,
+                                     triangulate=self.p.triangulate)
 
     def reset(self) -> None:
         from .collision_monitor import CollisionMonitor

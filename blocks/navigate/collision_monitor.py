@@ -36,8 +36,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .guard import SonarGuard
+from .sonar_triangulation import triangulate_echoes
 
-__all__ = ["CollisionMonitor", "MonitorParams", "carry_points"]
+__all__ = ["CollisionMonitor", "EchoMemory", "MonitorParams", "carry_points"]
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,14 @@ class MonitorParams:
         (m/s) and ``recovery_turn`` (rad/s).
     step
         The swept footprint is checked every ``step`` seconds of motion.
+    triangulate
+        Also locate near echoes by how fast their ranges close as the robot
+        drives (:func:`~blocks.navigate.sonar_triangulation.triangulate_echoes`),
+        comparing each scan with those ``triangulate_lags`` seconds older: a
+        wall end met by the body's front corner lies at the inner edge of a
+        diagonal sonar's cone, where the arc rule lets it through.
+    triangulate_lags, triangulate_range, triangulate_tolerance
+        See ``triangulate`` and the function's ``max_range`` and ``tolerance_deg``.
     """
 
     time_before_collision: float = 0.6
@@ -76,6 +85,10 @@ class MonitorParams:
     recovery_time: float = 1.0
     recovery_speed: float = 0.15
     recovery_turn: float = 0.6
+    triangulate: bool = False
+    triangulate_lags: tuple[float, ...] = (0.3, 0.5)
+    triangulate_range: float = 1.0
+    triangulate_tolerance: float = 10.0
 
 
 def carry_points(points: np.ndarray, then: np.ndarray, now: np.ndarray) -> np.ndarray:
@@ -92,6 +105,110 @@ def carry_points(points: np.ndarray, then: np.ndarray, now: np.ndarray) -> np.nd
     c, s = math.cos(now[2]), math.sin(now[2])
     dx, dy = wx - now[0], wy - now[1]
     return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
+
+
+class EchoMemory:
+    """The echo arcs of the last ``memory`` seconds, carried into the robot's present frame.
+
+    Why: a sonar corner seen at a grazing angle echoes on one tick and not the
+    next, so a check on this tick's echoes alone lets the body through where
+    it touched a wall a moment ago.  Odometry is exact enough over a second
+    to carry older echoes along.
+
+    Parameters
+    ----------
+    guard
+        The robot's sonar guard (its mounts and echo arcs).
+    params
+        ``memory`` (s), ``min_range`` and ``touch`` (m) of :class:`MonitorParams`.
+
+    Examples
+    --------
+    >>> memory = EchoMemory(SonarGuard(np.array([[0.25, 0.0, 0.0]])))
+    >>> memory.add(0.0, np.zeros(3), np.array([1.0]))
+    >>> memory.arcs(np.array([0.5, 0.0, 0.0]))[0, 1].round(2).tolist()  # 0.5 m nearer now
+    [0.75, 0.0]
+    """
+
+    def __init__(self, guard: SonarGuard, params: MonitorParams | None = None) -> None:
+        self.guard = guard
+        self.p = params or MonitorParams()
+        # time, odometry pose, echo arcs (and triangulated points), raw ranges
+        self._scans: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque()
+
+    def add(self, time: float, pose: np.ndarray, ranges: np.ndarray) -> None:
+        """Remember this tick's echoes, heard at odometry ``pose``; forget the old ones."""
+        raw = np.asarray(ranges, dtype=np.float64)
+        pose = np.array(pose, dtype=np.float64)
+        # a reading at the sonar's least range may be nearer still: take it as touching
+        arcs = self.guard.echo_arcs(np.where(raw <= self.p.min_range + self.p.touch, 0.0, raw))
+        if self.p.triangulate:
+            points = self._triangulated(time, pose, raw)
+            if len(points):
+                samples = max(self.guard.arc_samples, 1)
+                arcs = np.concatenate([arcs, np.repeat(points[:, None, :], samples, axis=1)])
+        self._scans.append((time, pose, arcs, raw))
+        keep = max(self.p.memory, max(self.p.triangulate_lags, default=0.0) + 0.05) \
+            if self.p.triangulate else self.p.memory
+        while self._scans and self._scans[0][0] < time - keep + 1e-9:
+            self._scans.popleft()
+
+    def _triangulated(self, time: float, pose: np.ndarray, raw: np.ndarray) -> np.ndarray:
+        """Points of this scan's near echoes located against the scans ``triangulate_lags`` ago."""
+        guard = self.guard
+        mounts = np.asarray(guard.mounts, dtype=np.float64).reshape(-1, 3)
+        echo = (raw < guard.max_range - guard.max_range_margin) \
+            & (raw > self.p.min_range + self.p.touch)
+        found = []
+        for lag in self.p.triangulate_lags:
+            then = min(self._scans, key=lambda scan: abs(scan[0] - (time - lag)), default=None)
+            if then is None or abs(then[0] - (time - lag)) > 0.06:
+                continue
+            then_raw = then[3]
+            then_echo = (then_raw < guard.max_range - guard.max_range_margin) \
+                & (then_raw > self.p.min_range + self.p.touch)
+            found.append(triangulate_echoes(
+                mounts, raw, echo, carry_points(mounts[:, :2], then[1], pose), then_raw,
+                then_echo, cone_deg=guard.cone_deg, max_range=self.p.triangulate_range,
+                tolerance_deg=self.p.triangulate_tolerance))
+        return np.concatenate(found) if found else np.zeros((0, 2))
+
+    def arcs(self, pose: np.ndarray) -> np.ndarray:
+        """(E, S, 2) the remembered echo arcs in the frame of odometry ``pose``."""
+        pose = np.asarray(pose, dtype=np.float64)
+        carried = [carry_points(arcs, then, pose) for t, then, arcs, _ in self._scans
+                   if len(arcs) and t >= self._scans[-1][0] - self.p.memory + 1e-9]
+        if not carried:
+            return np.zeros((0, max(self.guard.arc_samples, 1), 2))
+        return np.concatenate(carried)
+
+    def collision_time(self, pose: np.ndarray, v: float, w: float) -> float:
+        """Seconds until the body driving at (v, w) from odometry ``pose`` covers a
+        remembered echo, as the monitor sweeps it; inf if not within its horizon."""
+        return self.guard.collision_time(self.arcs(pose), v, w, self.p.time_before_collision,
+                                         step=self.p.step, margin=self.p.margin)
+
+    def stops(self, pose: np.ndarray, v: float, w: float) -> bool:
+        """Whether a collision monitor with these echoes would stop the motion (v, w)."""
+        return self.collision_time(pose, v, w) <= self.p.step
+
+    def nearest_clear(self, pose: np.ndarray, v: float, w: float) -> tuple[float, float] | None:
+        """The slow motion nearest to (v, w) that reaches no echo within the horizon, or None.
+
+        The candidates are backing, standing and creeping ahead at ``recovery_speed``,
+        each turning either way or not at ``recovery_turn``; nearness weighs speeds as
+        shares of those.
+        """
+        arcs = self.arcs(pose)
+        speed, turn = self.p.recovery_speed, self.p.recovery_turn
+        options = [(a * speed, b * turn) for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0)
+                   if a or b]
+        options.sort(key=lambda o: ((o[0] - v) / speed) ** 2 + ((o[1] - w) / turn) ** 2)
+        return next((o for o in options if self._clear(arcs, *o)), None)
+
+    def _clear(self, arcs: np.ndarray, v: float, w: float) -> bool:
+        return self.guard.collision_time(arcs, v, w, self.p.time_before_collision,
+                                         step=self.p.step, margin=self.p.margin) == math.inf
 
 
 class CollisionMonitor:
@@ -119,7 +236,7 @@ class CollisionMonitor:
     def __init__(self, guard: SonarGuard, params: MonitorParams | None = None) -> None:
         self.guard = guard
         self.p = params or MonitorParams()
-        self._scans: deque[tuple[float, np.ndarray, np.ndarray]] = deque()
+        self.echoes = EchoMemory(guard, self.p)
         self.scale = 1.0
         self.limited_ticks = 0
         self.stopped_ticks = 0
@@ -130,10 +247,7 @@ class CollisionMonitor:
 
     def arcs(self, pose: np.ndarray) -> np.ndarray:
         """(E, S, 2) the remembered echo arcs in the frame of ``pose``."""
-        carried = [carry_points(arcs, then, pose) for _, then, arcs in self._scans if len(arcs)]
-        if not carried:
-            return np.zeros((0, max(self.guard.arc_samples, 1), 2))
-        return np.concatenate(carried)
+        return self.echoes.arcs(pose)
 
     def step(self, time: float, pose: np.ndarray, ranges: np.ndarray, v: float,
              w: float) -> tuple[float, float]:
@@ -142,12 +256,8 @@ class CollisionMonitor:
         The scale applied is left in :attr:`scale` (1: unchanged, 0: stopped).
         """
         pose = np.asarray(pose, dtype=np.float64)
-        ranges = np.asarray(ranges, dtype=np.float64)
-        ranges = np.where(ranges <= self.p.min_range + self.p.touch, 0.0, ranges)
-        self._scans.append((time, pose.copy(), self.guard.echo_arcs(ranges)))
-        while self._scans and self._scans[0][0] < time - self.p.memory + 1e-9:
-            self._scans.popleft()
-        arcs = self.arcs(pose)
+        self.echoes.add(time, pose, ranges)
+        arcs = self.echoes.arcs(pose)
         horizon = self.p.time_before_collision
         if self._recovery is not None and time < self._recovery_until:
             if self._clear(arcs, *self._recovery):
@@ -165,7 +275,7 @@ class CollisionMonitor:
         if self._stopped_since is None:
             self._stopped_since = time
         if time - self._stopped_since >= self.p.patience - 1e-9:
-            self._recovery = self._nearest_clear(arcs, v, w)
+            self._recovery = self.echoes.nearest_clear(pose, v, w)
             if self._recovery is not None:
                 self.recoveries += 1
                 self._recovery_until = time + self.p.recovery_time
@@ -174,15 +284,4 @@ class CollisionMonitor:
         return 0.0, 0.0
 
     def _clear(self, arcs: np.ndarray, v: float, w: float) -> bool:
-        return self.guard.collision_time(arcs, v, w, self.p.time_before_collision,
-                                         step=self.p.step, margin=self.p.margin) == math.inf
-
-    def _nearest_clear(self, arcs: np.ndarray, v: float,
-                       w: float) -> tuple[float, float] | None:
-        """The motion nearest to (v, w) (speeds as shares of the recovery's) the monitor lets
-        through, or None."""
-        speed, turn = self.p.recovery_speed, self.p.recovery_turn
-        options = [(a * speed, b * turn) for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0)
-                   if a or b]
-        options.sort(key=lambda o: ((o[0] - v) / speed) ** 2 + ((o[1] - w) / turn) ** 2)
-        return next((o for o in options if self._clear(arcs, *o)), None)
+        return self.echoes._clear(arcs, v, w)

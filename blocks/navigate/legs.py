@@ -24,15 +24,28 @@ class Leg:
     started: float
     best: float = 0.0
     progress_time: float = math.nan
+    last: tuple[float, float] = (0.0, 0.0)  # the command of the last step
+    held_since: float | None = None  # the collision monitor has stopped it since
 
     def __post_init__(self) -> None:
         if math.isnan(self.progress_time):
             self.progress_time = self.started
 
     def step(self, time: float, pose: np.ndarray, *, timeout: float,
-             stall_time: float) -> tuple[float, float, str]:
+             stall_time: float, scale: float = 1.0,
+             held_time: float = math.inf) -> tuple[float, float, str]:
         """``(v, w, outcome)``: outcome is '' while under way, else 'arrived',
-        'timeout' (longer than ``timeout`` s) or 'no progress' (none for ``stall_time`` s)."""
+        'timeout' (longer than ``timeout`` s), 'no progress' (none for ``stall_time`` s)
+        or 'held' (a collision monitor let none of the leg's command through, ``scale``
+        0, for ``held_time`` s: driving on into what stopped it would only touch it
+        again once the monitor backs the robot off)."""
+        if scale > 0.0 or self.last == (0.0, 0.0):
+            self.held_since = None
+        elif self.held_since is None:
+            self.held_since = time
+        if self.held_since is not None and time - self.held_since >= held_time - 1e-9:
+            self.last = (0.0, 0.0)
+            return 0.0, 0.0, "held"
         v, w, status = self.follower.step(pose, 0.0)
         if status == "arrived":
             return 0.0, 0.0, "arrived"
@@ -42,6 +55,7 @@ class Leg:
             return 0.0, 0.0, "timeout"
         if time - self.progress_time > stall_time:
             return 0.0, 0.0, "no progress"
+        self.last = (float(v), float(w))
         return float(v), float(w), ""
 
 

@@ -179,6 +179,9 @@ class PlateViewParams:
         Longest look (s) once the robot faces the plate.
     leg_timeout, stall_time
         Seconds a leg may take, and may go without progress, before it ends.
+    held_time
+        A leg whose command a collision monitor stops for this long (s) ends
+        too (:class:`~blocks.navigate.legs.Leg`).  Infinite: no monitor.
     heading_tolerance
         How close (rad) a turn on the spot gets to the heading it wants.
     spin_rate
@@ -197,6 +200,7 @@ class PlateViewParams:
     look_time: float = 8.0
     leg_timeout: float = 40.0
     stall_time: float = 8.0
+    held_time: float = math.inf
     heading_tolerance: float = 0.05
     spin_rate: float = 1.2
 
@@ -266,6 +270,7 @@ class PlateViewer:
         self._status = ""
         self._reason = ""
         self._ranges: np.ndarray | None = None
+        self._scale = 1.0
 
     @property
     def active(self) -> bool:
@@ -281,14 +286,17 @@ class PlateViewer:
 
     # ---- the machine -----------------------------------------------------------------------
     def step(self, time: float, pose: np.ndarray, ranges: np.ndarray | None = None, *,
-             hold: bool = False, signs: list[tuple[float, float]] = ()
-             ) -> tuple[float, float] | None:
+             hold: bool = False, signs: list[tuple[float, float]] = (),
+             scale: float = 1.0) -> tuple[float, float] | None:
         """This tick's velocities, or None when the caller's behaviour should drive.
 
         ``hold`` pauses a view (the seeker stops the robot to capture) and
-        defers starting one; ``signs`` are the (x, y) of the signs known now.
+        defers starting one; ``signs`` are the (x, y) of the signs known now;
+        ``scale`` is how much of the last tick's command a collision monitor
+        let through.
         """
         pose = np.asarray(pose, dtype=np.float64)
+        self._scale = scale
         self._ranges = ranges
         self._drop_read(time, signs)
         if self.phase == "idle":
@@ -360,7 +368,8 @@ class PlateViewer:
     def _follow(self, time: float, pose: np.ndarray) -> tuple[float, float]:
         assert self._leg is not None
         v, w, outcome = self._leg.step(time, pose, timeout=self.p.leg_timeout,
-                                       stall_time=self.p.stall_time)
+                                       stall_time=self.p.stall_time, scale=self._scale,
+                                       held_time=self.p.held_time)
         if not outcome and self._blocked(v, w):
             outcome = "blocked"
         if outcome == "arrived":

@@ -339,6 +339,10 @@ class RoomVisitParams:
     leg_timeout, stall_time
         Seconds a leg may take, and may go without progress, before it is
         abandoned and the robot heads back.
+    held_time
+        A leg whose command a collision monitor stops for this long (s) is
+        abandoned too (:class:`~blocks.navigate.legs.Leg`); before the door,
+        the visit ends ``failed``.  Infinite: no monitor.
     spin_rate
         Turn rate of the look-around (rad/s).
     heading_tolerance
@@ -368,6 +372,7 @@ class RoomVisitParams:
     radius: float = 0.36
     leg_timeout: float = 60.0
     stall_time: float = 10.0
+    held_time: float = math.inf
     spin_rate: float = 1.2
     heading_tolerance: float = 0.05
     refine_radius: float = 0.4
@@ -459,6 +464,7 @@ class RoomVisitor:
         self._failure = ""
         self._spun = 0.0
         self._heading = 0.0
+        self._scale = 1.0
 
     # ---- feeding it ----------------------------------------------------------------------
     def add_sign(self, sign: SignRef, time: float = 0.0) -> bool:
@@ -479,14 +485,16 @@ class RoomVisitor:
         return self.phase != "idle"
 
     # ---- the machine -----------------------------------------------------------------------
-    def step(self, time: float, pose: np.ndarray,
-             hold: bool = False) -> tuple[float, float] | None:
+    def step(self, time: float, pose: np.ndarray, hold: bool = False,
+             scale: float = 1.0) -> tuple[float, float] | None:
         """This tick's velocities, or None when the caller's behaviour should drive.
 
         ``hold`` pauses a visit (e.g. while another behaviour stops the robot
-        to read a sign) and defers starting one.
+        to read a sign) and defers starting one; ``scale`` is how much of the
+        last tick's command a collision monitor let through.
         """
         pose = np.asarray(pose, dtype=np.float64)
+        self._scale = scale
         if self.phase == "idle":
             if hold or not self._try_start(time, pose):
                 return None
@@ -562,7 +570,16 @@ class RoomVisitor:
         leg = self._leg
         assert leg is not None
         v, w, outcome = leg.step(time, pose, timeout=self.p.leg_timeout,
-                                 stall_time=self.p.stall_time)
+                                 stall_time=self.p.stall_time, scale=self._scale,
+                                 held_time=self.p.held_time)
+        if outcome == "held":
+            failure = f"{self.phase}: held by the collision monitor"
+            if self.phase == "enter" and self._face_after and not self._looks:
+                self._failure = failure  # not at the door yet: going on would touch it again
+                self._end(time, "failed")
+            else:
+                self._leg_ended(time, pose, failure)
+            return 0.0, 0.0
         if outcome == "arrived":
             if self._face_after:  # on the door's axis: face it, find it again, go through
                 self._facing_out = self.phase == "return"
