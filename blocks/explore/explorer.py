@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from blocks.navigate.collision_monitor import EchoMemory, MonitorParams
+from blocks.navigate.collision_monitor import EchoMemory, HeldClock, MonitorParams
 from blocks.navigate.doorway import Doorway, doorway_legs, find_doorway
 from blocks.navigate.grid import NavGrid, cells_near, inflate, unblock_traversed
 from blocks.navigate.guard import SonarGuard
@@ -304,8 +304,9 @@ class FrontierExplorer:
         self._align_heading = 0.0
         self._narrow_guard = replace(guard, side_margin=0.0)
         self._echoes = None if self.p.monitor is None else EchoMemory(guard, self.p.monitor)
-        self._held: set[int] = set()  # bumpers pressed on the last tick
-        self._stopped_since: float | None = None  # held still by the monitor since
+        self._pressed: set[int] = set()  # bumpers pressed on the last tick
+        self._held = HeldClock()  # by the monitor
+        self._held_for = 0.0
         self._unpin_until = 0.0
         self._door_pursuit = replace(self.pursuit, cruise=min(self.p.door_speed,
                                                              self.pursuit.cruise))
@@ -431,12 +432,11 @@ class FrontierExplorer:
 
     # ---- contact and stalls ---------------------------------------------------------------
     def _note_monitor(self, time: float, scale: float) -> None:
-        """Keep when the monitor began holding still a command that asked to move."""
+        """How long the monitor has held still what was asked (this machine's or the
+        follower's command)."""
         v, w = self._asked
-        if self.p.monitor is None or scale > 0.0 or (abs(v) < 1e-6 and abs(w) < 1e-6):
-            self._stopped_since = None
-        elif self._stopped_since is None:
-            self._stopped_since = time
+        moving = self.p.monitor is not None and (abs(v) >= 1e-6 or abs(w) >= 1e-6)
+        self._held_for = self._held.update(time, scale, moving)
 
     def _trouble(self, time: float, pose: np.ndarray, ranges: np.ndarray,
                  bumpers: np.ndarray | None) -> str:
@@ -444,15 +444,15 @@ class FrontierExplorer:
         move or is kept from moving, else ''."""
         pressed = [] if bumpers is None else [k for k, on in enumerate(bumpers) if on]
         if self.p.monitor is not None:  # a bumper that stays pressed was one bump
-            pressed, self._held = [k for k in pressed if k not in self._held], set(pressed)
+            pressed, self._pressed = [k for k in pressed if k not in self._pressed], set(pressed)
         if pressed:
             for k in pressed:
                 self._remember_touch(pose, *self.bumpers[k][1:])
             self.result.bumps += 1
             return "bumped " + "+".join(self.bumpers[k][0] for k in pressed)
         v = self._command[0]
-        if self._stopped_since is not None and time - self._stopped_since >= self.p.held_time:
-            self._stopped_since = None
+        if self._held_for >= self.p.held_time:
+            self._held.reset()
             self.result.holds += 1
             self._remember_blocked(pose, ranges, v)
             return "held"
@@ -524,8 +524,7 @@ class FrontierExplorer:
                 bumpers: np.ndarray | None) -> tuple[float, float]:
         if self.phase == "escape":
             v = self._escape_speed
-            touching = bumpers is not None and any(
-                on and self._faces(k, v) for k, on in enumerate(bumpers))
+            touching = self._touching(bumpers, v)
             if time < self._escape_until and not touching and not self._blocked(
                     ranges, v, self._escape_turn):
                 return v, self._escape_turn
@@ -536,11 +535,15 @@ class FrontierExplorer:
         self.phase = self._after_escape
         return 0.0, 0.0
 
-    def _faces(self, k: int, v: float) -> bool:
-        """Whether bumper ``k`` faces the way a motion at speed ``v`` goes."""
-        _, start, end = self.bumpers[k]
-        mid = start + ((end - start) % (2 * math.pi)) / 2
-        return math.cos(mid) * v > 0
+    def _touching(self, bumpers: np.ndarray | None, v: float) -> bool:
+        """Whether a bumper facing the way a motion at speed ``v`` goes is pressed."""
+        if bumpers is None:
+            return False
+        for (_, start, end), on in zip(self.bumpers, bumpers):
+            mid = start + ((end - start) % (2 * math.pi)) / 2
+            if on and math.cos(mid) * v > 0:
+                return True
+        return False
 
     def _remember(self, time: float, pose: np.ndarray) -> None:
         if self._last is not None:
@@ -785,14 +788,15 @@ class FrontierExplorer:
             if not self._next_leg(time):
                 self._reached(time)
             return 0.0, 0.0
-        why = self._blocked(ranges, v, w, narrow=self._squeeze)
-        if why and self._echoes is not None and not (
-                self._narrow_guard if self._squeeze else self.guard).blocked(ranges, v, w):
-            # only the monitor would stop it (a corner the curve swings onto): creep the
-            # nearest way it lets through, as it would itself after a second, and keep the way
-            creep = self._echoes.nearest_clear(self._odometry, v, w)
-            if creep is not None:
-                return creep
+        why = (self._narrow_guard if self._squeeze else self.guard).blocked(ranges, v, w)
+        if not why:
+            why = self._monitor_stops(v, w)
+            if why:
+                # only the monitor would stop it (a corner the curve swings onto): creep the
+                # nearest way it lets through, as it would itself after a second; keep the way
+                creep = self._echoes.nearest_clear(self._odometry, v, w)
+                if creep is not None:
+                    return creep
         touched = None if why else self._touched_in_sweep(pose, v, w)
         if touched is not None and self._nudged < self.p.nudge_time:
             # a wall end the sonar misses, found by touching it, is in the corners' sweep
@@ -832,9 +836,14 @@ class FrontierExplorer:
         """Why the motion (v, w) is refused: by the sonar guard on this tick's echoes (its
         lane no wider than the body if ``narrow``), or as the collision monitor downstream
         would stop it (``ahead``, ``behind`` or ``turning``); '' if it may go."""
-        why = (self._narrow_guard if narrow else self.guard).blocked(ranges, v, w)
-        if why or self._echoes is None or not self._echoes.stops(self._odometry, v, w):
-            return why
+        return (self._narrow_guard if narrow else self.guard).blocked(ranges, v, w) \
+            or self._monitor_stops(v, w)
+
+    def _monitor_stops(self, v: float, w: float) -> str:
+        """``ahead``, ``behind`` or ``turning`` if the monitor downstream would stop the
+        motion (v, w), else '' (also without a monitor)."""
+        if self._echoes is None or not self._echoes.stops(self._odometry, v, w):
+            return ""
         return "ahead" if v > 1e-3 else "behind" if v < -1e-3 else "turning"
 
     def _touched_in_sweep(self, pose: np.ndarray, v: float, w: float) -> np.ndarray | None:
@@ -894,8 +903,7 @@ class FrontierExplorer:
                   bumpers: np.ndarray | None) -> tuple[float, float]:
         """Straight back a little, while the guard and the rear bumpers allow, then plan."""
         v = -self.p.back_off_speed
-        touching = bumpers is not None and any(
-            on and self._faces(k, v) for k, on in enumerate(bumpers))
+        touching = self._touching(bumpers, v)
         if touching or self._blocked(ranges, v, 0.0):
             self.phase = "plan"
             return 0.0, 0.0
@@ -917,8 +925,7 @@ class FrontierExplorer:
                bumpers: np.ndarray | None) -> tuple[float, float]:
         """Back straight along what pins the robot until it can turn (or for ``unpin_time``)."""
         v = -self.p.back_off_speed
-        touching = bumpers is not None and any(
-            on and self._faces(k, v) for k, on in enumerate(bumpers))
+        touching = self._touching(bumpers, v)
         if time >= self._unpin_until or touching or self._blocked(ranges, v, 0.0) \
                 or not self._pinned(ranges):
             self._progress_time = time

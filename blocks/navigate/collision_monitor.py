@@ -38,7 +38,7 @@ import numpy as np
 from .guard import SonarGuard
 from .sonar_triangulation import triangulate_echoes
 
-__all__ = ["CollisionMonitor", "EchoMemory", "MonitorParams", "carry_points"]
+__all__ = ["CollisionMonitor", "EchoMemory", "HeldClock", "MonitorParams", "carry_points"]
 
 
 @dataclass(frozen=True)
@@ -105,6 +105,38 @@ def carry_points(points: np.ndarray, then: np.ndarray, now: np.ndarray) -> np.nd
     c, s = math.cos(now[2]), math.sin(now[2])
     dx, dy = wx - now[0], wy - now[1]
     return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
+
+
+class HeldClock:
+    """How long a collision monitor has let none of a command that asks to move through.
+
+    The monitor itself (its patience before a recovery), and each behaviour
+    that reacts to being held (the explorer, a leg of a room visit), keep one.
+
+    Examples
+    --------
+    >>> clock = HeldClock()
+    >>> clock.update(1.0, 0.0, moving=True), clock.update(1.5, 0.0, moving=True)
+    (0.0, 0.5)
+    >>> clock.update(1.6, 0.4, moving=True)  # let through again
+    0.0
+    """
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+
+    def update(self, time: float, scale: float, moving: bool) -> float:
+        """Seconds held so far, given how much of the command (``scale``) got through."""
+        if scale > 0.0 or not moving:
+            self.since = None
+            return 0.0
+        if self.since is None:
+            self.since = time
+        return time - self.since
+
+    def reset(self) -> None:
+        """Start counting afresh (the hold has been answered)."""
+        self.since = None
 
 
 class EchoMemory:
@@ -204,9 +236,11 @@ class EchoMemory:
         options = [(a * speed, b * turn) for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0)
                    if a or b]
         options.sort(key=lambda o: ((o[0] - v) / speed) ** 2 + ((o[1] - w) / turn) ** 2)
-        return next((o for o in options if self._clear(arcs, *o)), None)
+        return next((o for o in options if self.lets_through(arcs, *o)), None)
 
-    def _clear(self, arcs: np.ndarray, v: float, w: float) -> bool:
+    def lets_through(self, arcs: np.ndarray, v: float, w: float) -> bool:
+        """Whether (v, w) reaches none of ``arcs`` (this memory's, in the robot's frame)
+        within the horizon."""
         return self.guard.collision_time(arcs, v, w, self.p.time_before_collision,
                                          step=self.p.step, margin=self.p.margin) == math.inf
 
@@ -241,7 +275,7 @@ class CollisionMonitor:
         self.limited_ticks = 0
         self.stopped_ticks = 0
         self.recoveries = 0
-        self._stopped_since: float | None = None
+        self._stopped = HeldClock()
         self._recovery: tuple[float, float] | None = None
         self._recovery_until = 0.0
 
@@ -269,19 +303,17 @@ class CollisionMonitor:
         if self.scale < 1.0:
             self.limited_ticks += 1
             self.stopped_ticks += self.scale == 0.0
-        if self.scale > 0.0 or (abs(v) < 1e-6 and abs(w) < 1e-6):
-            self._stopped_since = None
+        held = self._stopped.update(time, self.scale, abs(v) >= 1e-6 or abs(w) >= 1e-6)
+        if self._stopped.since is None:
             return v * self.scale, w * self.scale
-        if self._stopped_since is None:
-            self._stopped_since = time
-        if time - self._stopped_since >= self.p.patience - 1e-9:
+        if held >= self.p.patience - 1e-9:
             self._recovery = self.echoes.nearest_clear(pose, v, w)
             if self._recovery is not None:
                 self.recoveries += 1
                 self._recovery_until = time + self.p.recovery_time
-                self._stopped_since = None
+                self._stopped.reset()
                 return self._recovery
         return 0.0, 0.0
 
     def _clear(self, arcs: np.ndarray, v: float, w: float) -> bool:
-        return self.echoes._clear(arcs, v, w)
+        return self.echoes.lets_through(arcs, v, w)

@@ -7,10 +7,11 @@ turn on the spot to a heading; one copy of those rules keeps them alike.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from .collision_monitor import HeldClock
 from .pursuit import PurePursuit, wrap
 
 __all__ = ["Leg", "dedupe", "turn_rate"]
@@ -25,7 +26,7 @@ class Leg:
     best: float = 0.0
     progress_time: float = math.nan
     last: tuple[float, float] = (0.0, 0.0)  # the command of the last step
-    held_since: float | None = None  # the collision monitor has stopped it since
+    held: HeldClock = field(default_factory=HeldClock)  # by a collision monitor
 
     def __post_init__(self) -> None:
         if math.isnan(self.progress_time):
@@ -39,11 +40,7 @@ class Leg:
         or 'held' (a collision monitor let none of the leg's command through, ``scale``
         0, for ``held_time`` s: driving on into what stopped it would only touch it
         again once the monitor backs the robot off)."""
-        if scale > 0.0 or self.last == (0.0, 0.0):
-            self.held_since = None
-        elif self.held_since is None:
-            self.held_since = time
-        if self.held_since is not None and time - self.held_since >= held_time - 1e-9:
+        if self.held.update(time, scale, self.last != (0.0, 0.0)) >= held_time - 1e-9:
             self.last = (0.0, 0.0)
             return 0.0, 0.0, "held"
         v, w, status = self.follower.step(pose, 0.0)
