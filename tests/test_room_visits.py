@@ -11,11 +11,12 @@ from blocks.core.block import RunContext
 from blocks.core.errors import BlockError
 from blocks.maps.mapio import OccupancyMap
 from blocks.navigate.grid import inflate, inflate_occupied, unblock_traversed
+from blocks.navigate.doors import (DoorEstimate, SignRef, find_door, free_run, next_look,
+                                   room_box, unseen_nearby)
 from blocks.navigate.legs import Leg
 from blocks.navigate.planner import PlanningError, plan
 from blocks.navigate.pursuit import PurePursuit
-from blocks.navigate.rooms import (DoorEstimate, RoomVisitor, RoomVisitParams, SignRef,
-                                   find_door, free_run, next_look, room_box, unseen_nearby)
+from blocks.navigate.rooms import RoomVisitor, RoomVisitParams
 from sim2d.robot import load_robot
 from sim2d.simulation import Simulation
 from sim2d.world import load_world
@@ -85,7 +86,7 @@ def test_find_door_refuses_what_is_not_a_door_yet(case):
 
 
 def test_classes_at_points_are_the_map_classes_of_their_cells():
-    from blocks.navigate.rooms import _classes_at
+    from blocks.navigate.doors import _classes_at
     m = corridor_and_room()
     m.occupancy[::7, ::5] = 0.5  # some cells neither free nor occupied
     rng = np.random.default_rng(0)
@@ -192,12 +193,13 @@ def inside(world, name, x, y):
     return Path(np.asarray(polygon)).contains_point((x, y))
 
 
-def test_the_robot_visits_the_managers_room_and_comes_back_without_collisions(office):
+@pytest.mark.parametrize("drive_by", [False, True])
+def test_the_robot_visits_the_managers_room_and_comes_back_without_collisions(office, drive_by):
     spec = load_robot("atrv_mini")
     start = (6.5, 5.75, 0.0)  # in the corridor, before the MANAGER sign and door
     sim = Simulation(office, [("r", spec, start)], seed=0)
     robot = sim.robots["r"]
-    b = make_block()
+    b = make_block(drive_by=drive_by)
     signs = Signs([{"text": "MANAGER", "x": 8.35, "y": 5.1, "facing": 90.0}])
     visiting_at, looks_true, was_visiting = None, [], False
     out = None
@@ -238,13 +240,16 @@ def test_the_robot_visits_the_managers_room_and_comes_back_without_collisions(of
     b.finish()
     metrics = b.ctx.metrics["rooms"]
     assert metrics["visited"] == 1 and metrics["rooms"][0]["sign"] == "MANAGER"
+    # the door is not mapped yet when the sign is read: with a drive-by, the drive along
+    # its wall finds it at once; without, the search waits for the robot to pass it
+    assert (metrics["doors_driven_by"], metrics["doors_found_driving_by"]) == (drive_by, drive_by)
     assert metrics["map_builds"] >= 2
 
 
 def test_a_sign_with_no_door_in_reach_is_given_up(office):
     spec = load_robot("atrv_mini")
     sim = Simulation(office, [("r", spec, (1.1, 9.0, math.pi / 2))], seed=0)
-    b = make_block(give_up_distance=2.0)
+    b = make_block(give_up_distance=2.0, drive_by=False)
     # a "sign" on the plain west wall of the corridor, with no door anywhere near
     signs = Signs([{"text": "LAB", "x": 0.1, "y": 10.0, "facing": 0.0}])
     robot = sim.robots["r"]
@@ -259,6 +264,69 @@ def test_a_sign_with_no_door_in_reach_is_given_up(office):
     [result] = b.visitor.results
     assert result.status == "not_found" and result.attempts >= 2
     assert "no open door" in result.reason
+
+
+def test_a_door_not_found_is_sought_again_on_a_later_pass():
+    # the first pass sees no door (the far jamb unmapped); the second sees it
+    maps = {"now": corridor_and_room(far_jamb=False)}
+    asked: list[float] = []
+
+    def source(since, near):
+        asked.append(since)
+        return maps["now"], np.array([[0.5, 6.0], [2.0, 6.0]])
+
+    visitor = RoomVisitor(source, RoomVisitParams(revisits=1, revisit_distance=2.5, drive_by=False))
+    visitor.add_sign(SIGN, 0.0)
+    for k, x in enumerate(np.arange(0.5, 9.6, 0.5)):  # along the corridor and away
+        assert visitor.step(float(k), np.array([x, 6.0, 0.0])) is None
+    [first] = visitor.results
+    assert first.status == "not_found" and not visitor.pending and visitor.dormant
+    assert visitor.step(40.0, np.array([8.0, 6.0, math.pi])) is None  # 5.7 m off: still asleep
+    maps["now"] = corridor_and_room()
+    assert visitor.step(50.0, np.array([4.5, 6.0, math.pi])) is not None  # back past it
+    assert visitor.phase == "enter" and visitor.results == []  # the not_found is withdrawn
+    assert asked[-1] == pytest.approx(50.0 - visitor.p.window)  # this pass's scans only
+    # given up a second time, it stays given up
+    visitor = RoomVisitor(lambda since, near: (corridor_and_room(None), np.zeros((2, 2))),
+                          RoomVisitParams(revisits=1, drive_by=False))
+    visitor.add_sign(SIGN, 0.0)
+    for k, x in enumerate([2.0, 8.0, 3.0, 9.0, 3.0, 9.0]):
+        visitor.step(float(k), np.array([x, 6.0, 0.0]))
+    [result] = visitor.results
+    assert result.status == "not_found" and "passes: 2" in result.reason
+    assert not visitor.dormant and not visitor.pending
+
+
+def test_a_drive_by_that_finds_no_door_comes_back_and_lets_the_explorer_go_on(office):
+    spec = load_robot("atrv_mini")
+    start = (1.1, 9.0, math.pi / 2)
+    sim = Simulation(office, [("r", spec, start)], seed=0)
+    b = make_block(give_up_distance=2.0)
+    signs = Signs([{"text": "LAB", "x": 0.1, "y": 10.0, "facing": 0.0}])  # on a plain wall
+    robot = sim.robots["r"]
+    left_at, phases, ended_at = None, set(), None
+    for tick in range(900):
+        b.ctx.tick = tick
+        ranges, _ = sim.sonar("r")
+        out = b.step(robot.odom, ranges, 0.5, 0.0,
+                     signs=signs, done_in=True)
+        phases.add(b.visitor.phase)
+        if out["visiting"] and left_at is None:
+            left_at = robot.pose.copy()
+        if left_at is not None and not out["visiting"] and ended_at is None:
+            ended_at = robot.pose.copy()
+        if b.visitor.results:
+            break
+        sim.command("r", out["v"], out["w"])
+        sim.step(0.1)
+    assert {"drive_by", "drive_back", "align"} <= phases
+    [result] = b.visitor.results
+    assert result.status == "not_found"
+    assert (b.visitor.drive_bys["driven"], b.visitor.drive_bys["found"]) == (1, 0)
+    assert 5.0 < b.visitor.drive_bys["time_s"] < 60.0
+    assert np.hypot(*(ended_at[:2] - left_at[:2])) < 0.4  # back where it left off
+    assert abs(math.remainder(ended_at[2] - left_at[2], 2 * math.pi)) < 0.15
+    assert robot.collisions == 0
 
 
 def test_the_visitor_ignores_a_sign_it_already_knows():
@@ -302,6 +370,29 @@ def test_a_leg_the_monitor_keeps_stopping_is_held_and_a_pause_is_not():
     leg = Leg(PurePursuit(np.array([[0.0, 0.0], [5.0, 0.0]])), started=0.0)
     assert all(leg.step(0.1 * k, pose, timeout=60.0, stall_time=10.0, scale=0.3,
                         held_time=0.8)[2] == "" for k in range(20))
+
+
+def test_a_leg_creeps_round_what_the_monitor_would_stop_and_keeps_its_way():
+    from blocks.navigate.collision_monitor import EchoMemory, MonitorParams
+    from blocks.navigate.guard import SonarGuard
+    spec = load_robot("atrv_mini")
+    echoes = EchoMemory(SonarGuard.for_robot(spec), MonitorParams())
+    ranges = np.full(len(spec.sonar_names), spec.sonar.max_range)
+    ranges[spec.sonar_names.index("LtFr")] = 0.1  # beside the front left corner
+    pose = np.zeros(3)
+    echoes.add(0.0, pose, ranges)
+    way = np.array([[0.0, 0.0], [1.0, 0.6], [3.0, 1.5]])  # curving left, onto the echo
+    plain = Leg(PurePursuit(way), started=0.0).step(0.0, pose, timeout=60.0, stall_time=10.0)
+    assert echoes.stops(pose, plain[0], plain[1])  # as asked, the monitor would stop it
+    leg = Leg(PurePursuit(way), started=0.0)
+    v, w, outcome = leg.step(0.0, pose, timeout=60.0, stall_time=10.0, echoes=echoes)
+    assert outcome == "" and (v, w) != plain[:2]
+    assert echoes.collision_time(pose, v, w) == math.inf  # a creep the monitor lets through
+    assert leg.last == (v, w)
+    # creeping that gets nowhere still ends the leg
+    outcomes = [leg.step(0.5 * k, pose, timeout=60.0, stall_time=10.0, echoes=echoes)[2]
+                for k in range(1, 25)]
+    assert "no progress" in outcomes
 
 
 def test_a_visit_held_on_its_way_to_the_door_ends_failed_at_once():

@@ -284,6 +284,12 @@ class RoomVisits(Block):
         "give_up_distance": Param(float, 5.0, "skip a room whose door is not found by the time "
                                               "the robot is this far from its sign", unit="m",
                                   min=0.5),
+        "revisits": Param(int, 2, "a door not found is sought again when the robot passes "
+                                   "within 'revisit_distance' of its sign, at most this often",
+                          min=0),
+        "revisit_distance": Param(float, 2.5, "see 'revisits'", unit="m", min=0.1),
+        "drive_by": Param(bool, True, "a door not found while the robot is near its sign is "
+                                   "looked for from close by: a drive along the sign's wall"),
         "leg_timeout": Param(float, 60.0, "seconds a leg may take", unit="s", min=1.0),
         "spin_rate": Param(float, 1.2, "turn rate of the look-around", unit="rad/s", min=0.05),
         "plate_views": Param(bool, True, "go back for a readable view of the plates the seeker "
@@ -292,6 +298,8 @@ class RoomVisits(Block):
                                         "and the wheels: a leg it stops for 'held_time' is "
                                         "given up"),
         "held_time": Param(float, 0.8, "see 'monitored'", unit="s", min=0.1),
+        "triangulate": Param(bool, False, "with 'monitored': the monitor locates near echoes "
+                                          "by their closing rate (its 'triangulate')"),
     }
 
     def setup(self) -> None:
@@ -302,11 +310,16 @@ class RoomVisits(Block):
             raise BlockError(f"depth_max ({self.p.depth_max:g}) is below depth_min "
                              f"({self.p.depth_min:g})", node=self.name, field="param 'depth_max'",
                              hint="Make depth_max at least depth_min.")
+        from .collision_monitor import MonitorParams
         from .guard import SonarGuard
         spec = load_robot(self.p.robot)
         self._held_time = self.p.held_time if self.p.monitored else math.inf
         self._mounts = np.asarray(spec.sonar_mounts, dtype=np.float64)
         self._guard = SonarGuard.for_robot(spec)
+        # the monitor's echoes, so a leg creeps round what it would stop rather than wait
+        self._monitor = MonitorParams(min_range=spec.sonar.min_range,
+                                      triangulate=self.p.triangulate) \
+            if self.p.monitored else None
         self._cone, self._max_range = spec.sonar.cone_deg, spec.sonar.max_range
         self._pursuit = PursuitParams(cruise=min(self.p.cruise, spec.limits.max_speed),
                                       max_speed=spec.limits.max_speed,
@@ -316,6 +329,9 @@ class RoomVisits(Block):
                                        depth_max=self.p.depth_max, looks=self.p.looks,
                                        look_again=self.p.look_again, min_gain=self.p.min_gain,
                                        give_up_distance=self.p.give_up_distance,
+                                       revisits=self.p.revisits,
+                                       revisit_distance=self.p.revisit_distance,
+                                       drive_by=self.p.drive_by,
                                        window=self.p.window, radius=self.p.radius,
                                        leg_timeout=self.p.leg_timeout,
                                        spin_rate=self.p.spin_rate, held_time=self._held_time)
@@ -324,6 +340,7 @@ class RoomVisits(Block):
         from blocks.maps.local import LocalMaps
         from blocks.maps.offline import OfflineMapParams
 
+        from .collision_monitor import EchoMemory
         from .plate_views import PlateViewer, PlateViewParams
         from .rooms import RoomVisitor
         self._maps = LocalMaps(self._mounts, cone_deg=self._cone, max_range=self._max_range,
@@ -331,9 +348,12 @@ class RoomVisits(Block):
                                                        correct_drift=False))
         self._builds: list[float] = []
         self._version: Any = None
-        self.visitor = RoomVisitor(self._map_since, self._params, self._pursuit)
+        self._echoes = None if self._monitor is None else EchoMemory(self._guard, self._monitor)
+        self.visitor = RoomVisitor(self._map_since, self._params, self._pursuit,
+                                   echoes=self._echoes)
         self.viewer = PlateViewer(self._map_since, self._guard, pursuit=self._pursuit,
-                                  params=PlateViewParams(held_time=self._held_time))
+                                  params=PlateViewParams(held_time=self._held_time),
+                                  echoes=self._echoes)
         self._plates_seen: Any = None
 
     def _map_since(self, since: float, near: tuple[float, float]):
@@ -350,7 +370,7 @@ class RoomVisits(Block):
         return built.map, built.poses[:, :2]
 
     def _take_signs(self, signs: Any) -> None:
-        from .rooms import SignRef
+        from .doors import SignRef
         version = getattr(signs, "version", None)
         if version is not None and version == self._version:
             return
@@ -383,6 +403,8 @@ class RoomVisits(Block):
             return {"v": float(v_in), "w": float(w_in), "visiting": False,
                     "done": bool(done_in), "look_at": None}
         self._maps.add(self.ctx.time, pose, ranges)
+        if self._echoes is not None:
+            self._echoes.add(self.ctx.time, pose, ranges)
         if signs is not None:
             self._take_signs(signs)
         if plates is not None and self.p.plate_views:

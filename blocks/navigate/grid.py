@@ -123,6 +123,14 @@ class NavGrid:
         return float(self.clearance[r, c]) if self.inside(r, c) else 0.0
 
     # ---- queries the planner and the follower need ----------------------------------------
+    def free_cell_at(self, x: float, y: float, max_distance: float) -> tuple[int, int] | None:
+        """The cell of world (x, y) if free, else the nearest free cell within
+        ``max_distance`` metres (a robot whose map drew a wall into its own cell)."""
+        row, col = self.world_to_cell(x, y)
+        if self.inside(row, col) and not self.blocked[row, col]:
+            return row, col
+        return self.nearest_free(row, col, max_distance)
+
     def nearest_free(self, row: int, col: int, max_distance: float,
                      label: int | None = None) -> tuple[int, int] | None:
         """The free cell nearest to (row, col) within ``max_distance`` metres.

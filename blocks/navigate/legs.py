@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .collision_monitor import HeldClock
+from .collision_monitor import EchoMemory, HeldClock
 from .pursuit import PurePursuit, wrap
 
 __all__ = ["Leg", "dedupe", "turn_rate"]
@@ -34,12 +34,21 @@ class Leg:
 
     def step(self, time: float, pose: np.ndarray, *, timeout: float,
              stall_time: float, scale: float = 1.0,
-             held_time: float = math.inf) -> tuple[float, float, str]:
+             held_time: float = math.inf,
+             echoes: EchoMemory | None = None) -> tuple[float, float, str]:
         """``(v, w, outcome)``: outcome is '' while under way, else 'arrived',
         'timeout' (longer than ``timeout`` s), 'no progress' (none for ``stall_time`` s)
         or 'held' (a collision monitor let none of the leg's command through, ``scale``
         0, for ``held_time`` s: driving on into what stopped it would only touch it
-        again once the monitor backs the robot off)."""
+        again once the monitor backs the robot off).
+
+        With ``echoes`` (the monitor's, and ``pose`` in their odometry frame), a
+        command the monitor would stop (a corner the way swings onto, a jamb
+        met askew) is replaced by the nearest slow motion it lets through
+        (:meth:`~blocks.navigate.collision_monitor.EchoMemory.nearest_clear`):
+        the robot creeps round it and the way is kept; creeping that gets
+        nowhere ends as 'no progress'.
+        """
         if self.held.update(time, scale, self.last != (0.0, 0.0)) >= held_time - 1e-9:
             self.last = (0.0, 0.0)
             return 0.0, 0.0, "held"
@@ -52,6 +61,8 @@ class Leg:
             return 0.0, 0.0, "timeout"
         if time - self.progress_time > stall_time:
             return 0.0, 0.0, "no progress"
+        if echoes is not None and echoes.stops(pose, v, w):
+            v, w = echoes.nearest_clear(pose, v, w) or (v, w)
         self.last = (float(v), float(w))
         return float(v), float(w), ""
 

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from .collision_monitor import EchoMemory
 from .grid import NavGrid, inflate, unblock_traversed
 from .guard import SonarGuard
 from .legs import Leg, dedupe, turn_rate
@@ -112,12 +113,10 @@ def view_point(grid: NavGrid, occupied: np.ndarray, here: tuple[float, float],
     (x, y) or None
         None when no reachable cell sees the plate well.
     """
-    row, col = grid.world_to_cell(*here)
-    if not grid.inside(row, col) or grid.blocked[row, col]:
-        snapped = grid.nearest_free(row, col, 0.6)
-        if snapped is None:
-            return None
-        row, col = snapped
+    cell = grid.free_cell_at(*here, 0.6)
+    if cell is None:
+        return None
+    row, col = cell
     near = max(min_range, plate.top / math.tan(tilt_limit))
     if near > max_range:
         return None
@@ -246,12 +245,15 @@ class PlateViewer:
         See :class:`PlateViewParams` and :class:`~.pursuit.PursuitParams`.
     read_radius
         A sign known this close (m) to a plate reads it.
+    echoes
+        A collision monitor's remembered echoes: see :class:`~.rooms.RoomVisitor`.
     """
 
     def __init__(self, maps: MapSource, guard: SonarGuard | None = None,
                  params: PlateViewParams | None = None, pursuit: PursuitParams | None = None,
-                 read_radius: float = 1.2) -> None:
+                 read_radius: float = 1.2, echoes: EchoMemory | None = None) -> None:
         self.maps = maps
+        self.echoes = echoes
         self.guard = guard
         self.p = params or PlateViewParams()
         self.pursuit = pursuit or PursuitParams()
@@ -369,7 +371,7 @@ class PlateViewer:
         assert self._leg is not None
         v, w, outcome = self._leg.step(time, pose, timeout=self.p.leg_timeout,
                                        stall_time=self.p.stall_time, scale=self._scale,
-                                       held_time=self.p.held_time)
+                                       held_time=self.p.held_time, echoes=self.echoes)
         if not outcome and self._blocked(v, w):
             outcome = "blocked"
         if outcome == "arrived":

@@ -11,9 +11,24 @@ A visit, once a sign has been read:
    caller in the odometry frame; over half a minute the drift is small).  A
    door is an opening in the sign's wall, within ``half_width`` of the sign,
    with mapped wall on both sides and floor seen behind it
-   (:func:`find_door`).  Until the robot has passed the door, one jamb is
+   (:func:`~.doors.find_door`).  Until the robot has passed the door, one jamb is
    not mapped yet and the search is retried every ``retry_distance`` metres
-   of travel, up to ``give_up_distance`` from the sign.
+   of travel, up to ``give_up_distance`` from the sign.  A door not found
+   then is sought again, up to ``revisits`` times, whenever the robot
+   passes within ``revisit_distance`` of the sign later: the explorer comes
+   back along most corridors, and a door seen askew or half hidden on one
+   pass is often seen square on the next.
+
+   Why a door is missed: a sonar cone 30 degrees wide, passing a door 1.5 m
+   off, hears the jambs across most of the opening and draws the wall
+   unbroken; 0.8 m off, the cone is half as wide and the opening shows.
+   So when a search fails while the robot is still within
+   ``drive_by_distance`` of the sign, it **drives by** first: along
+   the sign's wall ``drive_by_standoff`` off it, from ``half_width`` plus
+   ``drive_by_margin`` on one side of the sign to as far on the other, its
+   side sonars square on to the wall, and searches again.  Found, the visit
+   goes on from there; not found, the robot goes back to where it was and
+   the sign waits for a later pass like any other.
 
    Why not simply plan to the free space behind the wall: a sonar beam that
    meets a wall at a grazing angle is reflected away, and the echo it hears
@@ -26,7 +41,7 @@ A visit, once a sign has been read:
    as the floor seen through the door allows; **look around** 360 degrees.
 3. **Look again**, up to ``looks`` times, from where the most of the room
    is still unseen, now that the looks so far have mapped it
-   (:func:`next_look`, a next-best-view rule).
+   (:func:`~.doors.next_look`, a next-best-view rule).
 4. **Come back**: to the door's axis, face the door and find it again on
    the last scans (odometry drifts during the looks), out through it, A* to
    where the visit began, and face the way the robot was going, so the
@@ -39,263 +54,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .collision_monitor import EchoMemory
+from .doors import DoorEstimate, SignRef, find_door, next_look
 from .grid import NavGrid, inflate, unblock_traversed
 from .legs import Leg, dedupe, turn_rate
 from .planner import PlanningError, plan
 from .pursuit import PurePursuit, PursuitParams, wrap
 
-__all__ = ["DoorEstimate", "RoomVisitParams", "RoomVisitResult", "RoomVisitor", "SignRef",
-           "find_door", "free_run", "next_look", "room_box",
-           "unseen_nearby"]
-
-
-@dataclass(frozen=True)
-class SignRef:
-    """A sign read on a door: its text, position (m) and facing (rad, the way it looks)."""
-
-    text: str
-    x: float
-    y: float
-    facing: float
-
-    @classmethod
-    def from_dict(cls, sign: dict[str, Any]) -> SignRef:
-        """From a ``signs.correlate`` entry (``facing`` in degrees)."""
-        return cls(str(sign["text"]), float(sign["x"]), float(sign["y"]),
-                   math.radians(float(sign["facing"])))
-
-
-@dataclass(frozen=True)
-class DoorEstimate:
-    """An opening in a wall, as the map shows it.
-
-    Attributes
-    ----------
-    wall
-        (x, y) of the wall's corridor-side surface at the middle of the opening.
-    normal
-        Unit vector out of the room (the sign's facing).
-    width
-        Width of the opening on the map (m); sonar draws jambs thick, so
-        it is narrower than the true door.
-    inside
-        Free floor (m) seen straight in from the wall surface.
-    """
-
-    wall: tuple[float, float]
-    normal: tuple[float, float]
-    width: float
-    inside: float
-
-    def point(self, depth: float) -> tuple[float, float]:
-        """The point ``depth`` metres into the room along the door's axis (negative: out)."""
-        return (self.wall[0] - depth * self.normal[0], self.wall[1] - depth * self.normal[1])
-
-
-def _classes_at(occupancy_map: Any, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(occupied, free) at world points (..., 2); points off the map are neither.
-
-    The map's classes (:meth:`~blocks.maps.mapio.OccupancyMap.classes`) of the
-    cells sampled only, not of the whole grid: a door search samples a few
-    thousand of its hundreds of thousands of cells.
-    """
-    res, (ox, oy) = occupancy_map.resolution, occupancy_map.origin[:2]
-    rows = np.floor((xy[..., 1] - oy) / res).astype(np.int64)
-    cols = np.floor((xy[..., 0] - ox) / res).astype(np.int64)
-    h, w = occupancy_map.shape
-    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    r, c = np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)
-    sampled = replace(occupancy_map, occupancy=np.asarray(occupancy_map.occupancy)[r, c])
-    occupied, free, _ = sampled.classes()
-    return occupied & inside, free & inside
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) index pairs of the True runs of a 1-D mask."""
-    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
-
-
-def free_run(occupancy_map: Any, start: tuple[float, float], direction: tuple[float, float],
-             *, max_distance: float, step: float | None = None) -> float:
-    """How far (m) the map is free from ``start`` along ``direction`` (up to ``max_distance``)."""
-    step = step or occupancy_map.resolution / 2
-    s = np.arange(0.0, max_distance + step, step)
-    xy = np.asarray(start)[None, :] + s[:, None] * np.asarray(direction)[None, :]
-    _, free = _classes_at(occupancy_map, xy)
-    blocked = np.flatnonzero(~free)
-    return float(max_distance if blocked.size == 0 else s[blocked[0]])
-
-
-def room_box(shape: tuple[int, int], resolution: float, origin: tuple[float, ...],
-             door: DoorEstimate, *, half_width: float, depth: float) -> np.ndarray:
-    """(H, W) bool: the cells behind the door's wall, up to ``depth`` deep and
-    ``half_width`` to either side of the door: where its room can be."""
-    h, w = shape
-    xs = origin[0] + (np.arange(w) + 0.5) * resolution
-    ys = origin[1] + (np.arange(h) + 0.5) * resolution
-    dx, dy = xs[None, :] - door.wall[0], ys[:, None] - door.wall[1]
-    nx, ny = door.normal
-    behind = -(dx * nx + dy * ny)
-    lateral = dx * -ny + dy * nx
-    return (behind >= 0.0) & (behind <= depth) & (np.abs(lateral) <= half_width)
-
-
-def unseen_nearby(unknown: np.ndarray, resolution: float, radius: float,
-                  block: float = 0.1) -> np.ndarray:
-    """(H, W) float: area (m^2) of ``unknown`` cells within ``radius`` of each cell.
-
-    Computed on ``block``-metre cells (a box filter on a disk), so it is cheap
-    enough to run after every look.
-    """
-    import cv2
-    f = max(1, int(round(block / resolution)))
-    h, w = unknown.shape
-    hp, wp = -(-h // f) * f, -(-w // f) * f
-    padded = np.zeros((hp, wp), dtype=np.float32)
-    padded[:h, :w] = unknown
-    coarse = padded.reshape(hp // f, f, wp // f, f).sum(axis=(1, 3)) * resolution ** 2
-    k = int(math.ceil(radius / (f * resolution)))
-    yy, xx = np.mgrid[-k:k + 1, -k:k + 1]
-    disk = ((xx * xx + yy * yy) <= k * k).astype(np.float32)
-    area = cv2.filter2D(coarse, -1, disk, borderType=cv2.BORDER_CONSTANT)
-    return np.repeat(np.repeat(area, f, axis=0), f, axis=1)[:h, :w]
-
-
-def next_look(grid: NavGrid, unknown: np.ndarray, door: DoorEstimate,
-              here: tuple[float, float], *, min_distance: float = 1.0,
-              half_width: float = 3.2, depth_max: float = 5.5, min_clearance: float = 0.5,
-              sensing: float = 3.0, min_gain: float = 1.5) -> tuple[float, float] | None:
-    """Where to look around next in a room: the reachable spot that sees the most unseen floor.
-
-    A next-best-view rule: candidates are the cells the robot can reach from
-    ``here`` inside the room's box (see :func:`room_box`) with
-    ``min_clearance`` around them (it turns in place there) and at least
-    ``min_distance`` away; each is worth the unknown area of the box within
-    ``sensing`` metres (the sonar's useful range).  Occlusion is ignored.
-
-    Parameters
-    ----------
-    unknown
-        (H, W) bool, the local map's unknown cells, on ``grid``'s cells.
-    min_gain
-        Below this much unseen area (m^2) a look is not worth it.
-
-    Returns
-    -------
-    (x, y) or None
-    """
-    row, col = grid.world_to_cell(*here)
-    if not grid.inside(row, col) or grid.blocked[row, col]:
-        snapped = grid.nearest_free(row, col, 0.6)
-        if snapped is None:
-            return None
-        row, col = snapped
-    box = room_box(grid.shape, grid.resolution, grid.origin, door, half_width=half_width,
-                   depth=depth_max)
-    gain = unseen_nearby(unknown & box, grid.resolution, sensing)
-    rows, cols = np.nonzero((grid.labels == grid.labels[row, col]) & box
-                            & (grid.clearance >= min_clearance))
-    if rows.size == 0:
-        return None
-    xy = grid.cell_to_world(rows, cols)
-    distance = np.hypot(xy[:, 0] - here[0], xy[:, 1] - here[1])
-    worth = gain[rows, cols]
-    ok = (distance >= min_distance) & (worth >= min_gain)
-    if not ok.any():
-        return None
-    # Gain in 0.25 m^2 steps, so near-equal gains tie and the more open cell wins.
-    best = np.lexsort((-grid.clearance[rows[ok], cols[ok]], -np.round(worth[ok] / 0.25)))[0]
-    return float(xy[ok][best, 0]), float(xy[ok][best, 1])
-
-
-def find_door(occupancy_map: Any, sign: SignRef, *, half_width: float = 2.2,
-              search: float = 3.5, wall_search: float = 0.6, wall_depth: float = 0.25,
-              min_width: float = 0.25, max_width: float = 2.0, jamb: float = 0.2,
-              seen_behind: float = 0.5) -> DoorEstimate | None:
-    """The opening in the sign's wall nearest to the sign, or None.
-
-    Parameters
-    ----------
-    occupancy_map
-        The local map (an :class:`~blocks.maps.mapio.OccupancyMap`).
-    sign
-        The sign; its wall runs across its facing, the room is behind it.
-    half_width
-        The opening's middle must be within this distance (m) of the sign
-        along the wall (a sign hangs next to its door).
-    search
-        Length (m) of wall examined on each side of the sign.
-    wall_search
-        The sign's position is an estimate: the wall's surface is sought
-        within this distance (m) in front of and behind it.
-    wall_depth
-        Thickness (m) of the band behind the surface that counts as the wall.
-    min_width, max_width
-        Openings narrower than ``min_width`` on the map are gaps between
-        readings, wider than ``max_width`` are not doors (m).
-    jamb
-        Each end of the opening must have mapped wall within this distance (m):
-        an opening whose far side was not seen yet is not trusted.
-    seen_behind
-        Depth (m) behind the wall that must be seen free across most of the
-        opening (the robot has looked through it).
-
-    Returns
-    -------
-    DoorEstimate or None
-    """
-    res = occupancy_map.resolution
-    normal = np.array([math.cos(sign.facing), math.sin(sign.facing)])
-    along = np.array([-normal[1], normal[0]])
-    u = np.arange(-search, search + res / 2, res / 2)
-    d = np.arange(-wall_search, wall_search + wall_depth + seen_behind + res, res / 2)
-    # Points at lateral u, depth d behind the sign's position: (len(d), len(u), 2).
-    xy = (np.array([sign.x, sign.y])[None, None, :] + u[None, :, None] * along[None, None, :]
-          - d[:, None, None] * normal[None, None, :])
-    occupied, free = _classes_at(occupancy_map, xy)
-    # The wall's surface: the depth whose line holds the most occupied cells.
-    surface_rows = np.flatnonzero(np.abs(d) <= wall_search)
-    counts = occupied[surface_rows].sum(axis=1)
-    if counts.max() * res / 2 < 1.0:  # less than a metre of wall seen
-        return None
-    k0 = int(surface_rows[int(np.argmax(counts))])
-    d0 = float(d[k0])
-    band = (d >= d0 - res) & (d <= d0 + wall_depth)
-    wall = occupied[band].any(axis=0)
-    behind = (d > d0 + wall_depth) & (d <= d0 + wall_depth + seen_behind)
-    seen = free[behind].mean(axis=0) >= 0.5
-    best: DoorEstimate | None = None
-    for a, b in _runs(~wall):
-        width = (b - a) * res / 2
-        if not (min_width <= width <= max_width):
-            continue
-        reach = int(round(jamb / (res / 2)))
-        left_ok = a > 0 and wall[max(0, a - reach):a].any()
-        right_ok = b < len(u) and wall[b:b + reach].any()
-        if not (left_ok and right_ok) or seen[a:b].mean() < 0.6:
-            continue
-        centre = 0.5 * (u[a] + u[b - 1])
-        if abs(centre) > half_width:
-            continue
-        surface = np.array([sign.x, sign.y]) + centre * along - d0 * normal
-        inside = free_run(occupancy_map, tuple(surface - (wall_depth + res) * normal),
-                          tuple(-normal), max_distance=6.0) + wall_depth + res
-        door = DoorEstimate((float(surface[0]), float(surface[1])),
-                            (float(normal[0]), float(normal[1])), float(width), float(inside))
-        if best is None or abs(centre) < abs(_lateral(best, sign)):
-            best = door
-    return best
-
-
-def _lateral(door: DoorEstimate, sign: SignRef) -> float:
-    along = (-math.sin(sign.facing), math.cos(sign.facing))
-    return (door.wall[0] - sign.x) * along[0] + (door.wall[1] - sign.y) * along[1]
+__all__ = ["RoomVisitParams", "RoomVisitResult", "RoomVisitor"]
 
 
 @dataclass(frozen=True)
@@ -320,14 +91,22 @@ class RoomVisitParams:
         A further look must be at least this far (m) from the last one.
     min_gain
         ...and see at least this much unseen floor of the room (m^2); see
-        :func:`next_look`.
+        :func:`~.doors.next_look`.
     room_half_width, room_depth
         The box (m) around the door's axis the looks stay in.
     retry_distance
         Metres of travel between two searches for a door not found yet.
     give_up_distance
         A door not found by the time the robot is this far from its sign is
-        skipped (closed, or too narrow for the sonar to see through).
+        skipped (closed, or too narrow for the sonar to see through)...
+    revisit_distance, revisits
+        ...until the robot passes this close (m) to the sign again, when the
+        search starts over; at most ``revisits`` times per sign.
+    drive_by, drive_by_distance, drive_by_standoff, drive_by_margin
+        Whether a search that fails within ``drive_by_distance`` (m) of the sign
+        is followed by a close look: a drive along the sign's wall,
+        ``drive_by_standoff`` (m) off it, ``half_width + drive_by_margin`` (m) either
+        side of the sign.  Once per sign.
     window
         Seconds of scans before a visit that its maps include.
     lead
@@ -367,6 +146,12 @@ class RoomVisitParams:
     room_depth: float = 5.5
     retry_distance: float = 0.8
     give_up_distance: float = 5.0
+    revisit_distance: float = 2.5
+    revisits: int = 2
+    drive_by: bool = True
+    drive_by_distance: float = 3.0
+    drive_by_standoff: float = 0.8
+    drive_by_margin: float = 0.4
     window: float = 30.0
     lead: float = 15.0
     radius: float = 0.36
@@ -407,6 +192,10 @@ class _Pending:
     attempts: int = 0
     last_try: tuple[float, float] | None = None
     first_seen: float = 0.0
+    revisits: int = 0  # searches started over on a later pass
+    scans_from: float = -math.inf  # a search's maps hold no older scans (a later pass's)
+    driven_by: bool = False  # the door was looked for on a drive along its wall
+    result: RoomVisitResult | None = None  # while the door is not found
 
 
 #: A callback giving the local map (an OccupancyMap) of the scans since a time (s) taken
@@ -436,20 +225,26 @@ class RoomVisitor:
         A sign this close (m) to one already known is the same sign.
     same_text_radius
         ...and so is a sign with the same text this close (m).
+    echoes
+        The remembered echoes of a collision monitor downstream (fed by the
+        caller, in the frame of the poses): a leg's command it would stop is
+        replaced by a creep round what stops it (:meth:`~.legs.Leg.step`).
     """
 
     def __init__(self, maps: MapSource, params: RoomVisitParams | None = None,
                  pursuit: PursuitParams | None = None, merge_radius: float = 1.0,
-                 same_text_radius: float = 5.0) -> None:
+                 same_text_radius: float = 5.0, echoes: EchoMemory | None = None) -> None:
         self.maps = maps
+        self.echoes = echoes
         self.p = params or RoomVisitParams()
         self.pursuit = pursuit or PursuitParams()
         self.merge_radius = merge_radius
         self.same_text_radius = same_text_radius
         self.known: list[SignRef] = []
         self.pending: list[_Pending] = []
+        self.dormant: list[_Pending] = []  # door not found: sought again on a later pass
         self.results: list[RoomVisitResult] = []
-        self.phase = "idle"  # idle, enter, face, spin, deeper, return, align
+        self.phase = "idle"  # idle, drive_by, drive_back, enter, face, spin, deeper, return, align
         self.door: DoorEstimate | None = None
         self.grid: NavGrid | None = None  # the last grid planned on (pictures, tests)
         self._leg: Leg | None = None
@@ -465,6 +260,9 @@ class RoomVisitor:
         self._spun = 0.0
         self._heading = 0.0
         self._scale = 1.0
+        self._driving_by = False  # the door is sought from in front of the sign
+        self._drive_by_far: tuple[np.ndarray, np.ndarray] | None = None  # middle, direction
+        self.drive_bys = {"driven": 0, "found": 0, "time_s": 0.0}  # time of those found nothing
 
     # ---- feeding it ----------------------------------------------------------------------
     def add_sign(self, sign: SignRef, time: float = 0.0) -> bool:
@@ -517,47 +315,173 @@ class RoomVisitor:
     def _try_start(self, time: float, pose: np.ndarray) -> bool:
         """Start the visit of the first pending room whose door can be found now."""
         here = (float(pose[0]), float(pose[1]))
+        self._revive(time, here)
         for item in list(self.pending):
             sign = item.sign
             if item.attempts and math.hypot(here[0] - sign.x, here[1] - sign.y) \
                     > self.p.give_up_distance:
                 self.pending.remove(item)
-                self.results.append(RoomVisitResult(
+                item.result = RoomVisitResult(
                     sign.text, "not_found", item.first_seen, time, attempts=item.attempts,
                     reason=f"no open door within {self.p.half_width:g} m of the sign mapped "
-                           f"before the robot was {self.p.give_up_distance:g} m from it"))
+                           f"before the robot was {self.p.give_up_distance:g} m from it"
+                           + (f" (passes: {item.revisits + 1})" if item.revisits else ""))
+                self.results.append(item.result)
+                self.dormant.append(item)
                 continue
             if item.last_try is not None and math.hypot(
                     here[0] - item.last_try[0], here[1] - item.last_try[1]) < self.p.retry_distance:
                 continue
             item.attempts += 1
             item.last_try = here
-            # The scans since just before the sign was read: they saw its door, even
-            # if another visit came in between.
-            built = self.maps(min(time - self.p.window, item.first_seen - self.p.lead),
-                              (sign.x, sign.y))
+            built = self._search_map(item, time)
             if built is None:
                 continue
             local_map, positions = built
             door = find_door(local_map, sign, half_width=self.p.half_width)
             if door is None or door.inside - self.p.margin < self.p.depth_min:
+                if self._may_drive_by(item, here) and self._start_drive_by(
+                        time, pose, item, self._grid(local_map, positions)):
+                    return True
                 continue
-            grid = self._grid(local_map, positions)
-            approach = door.point(-self.p.approach)
-            try:
-                way = plan(grid, here, approach).points
-            except PlanningError:
-                continue
-            self.pending.remove(item)
-            self.grid, self.door = grid, door
             self._sign, self._start_pose, self._started = item, pose.copy(), time
-            self._looks, self._failure = [], ""
-            self._depth = min(self.p.depth_max, door.inside - self.p.margin)
-            # A path that arrives on the door's axis at an angle cuts the corner and
-            # meets the door askew, so the robot stops on the axis first (see _face).
-            self._begin_leg("enter", way, time, face_after=True)
-            return True
+            if self._go_to_door(time, pose, door, self._grid(local_map, positions)):
+                self.pending.remove(item)
+                return True
+            self._sign = None
         return False
+
+    def _search_map(self, item: _Pending, time: float) -> tuple[Any, np.ndarray] | None:
+        """The local map to seek a sign's door on, and where its scans were taken.
+
+        The scans since just before the sign was read: they saw its door, even if
+        another visit came in between (on a later pass, that pass's only).
+        """
+        since = max(item.scans_from, min(time - self.p.window, item.first_seen - self.p.lead))
+        return self.maps(since, (item.sign.x, item.sign.y))
+
+    def _go_to_door(self, time: float, pose: np.ndarray, door: DoorEstimate,
+                    grid: NavGrid) -> bool:
+        """Start the way to ``door`` (in front of it, on its axis); False if none."""
+        try:
+            way = plan(grid, (float(pose[0]), float(pose[1])),
+                       door.point(-self.p.approach)).points
+        except PlanningError:
+            return False
+        self.grid, self.door = grid, door
+        self._looks, self._failure = [], ""
+        self._depth = min(self.p.depth_max, door.inside - self.p.margin)
+        # A path that arrives on the door's axis at an angle cuts the corner and
+        # meets the door askew, so the robot stops on the axis first (see _face).
+        self._begin_leg("enter", way, time, face_after=True)
+        return True
+
+    # ---- the drive-by: a close look along the sign's wall ------------------------------------
+    def _may_drive_by(self, item: _Pending, here: tuple[float, float]) -> bool:
+        """Whether a failed search for this sign's door is followed by a drive-by now."""
+        return self.p.drive_by and not item.driven_by and math.hypot(
+            here[0] - item.sign.x, here[1] - item.sign.y) <= self.p.drive_by_distance
+
+    def _start_drive_by(self, time: float, pose: np.ndarray, item: _Pending,
+                     grid: NavGrid) -> bool:
+        """Drive along the sign's wall, close, to look for its door; False if not now."""
+        sign = item.sign
+        here = (float(pose[0]), float(pose[1]))
+        normal = np.array([math.cos(sign.facing), math.sin(sign.facing)])
+        along = np.array([-normal[1], normal[0]])
+        # the standoff asked for, else the nearest free one (a stray echo near the wall)
+        standoffs = self.p.drive_by_standoff + np.array([0.0, 0.2, -0.2, 0.4, 0.6])
+        middle = next((np.array([sign.x, sign.y]) + d * normal for d in standoffs
+                       if d > 0.3 and grid.is_free(sign.x + d * normal[0],
+                                                   sign.y + d * normal[1])), None)
+        if middle is None:
+            return False  # no floor in front of the sign on the map yet
+        # the near end first; the far one once there, on the map of what it saw meanwhile
+        side = -1.0 if np.dot(np.asarray(here) - middle, along) < 0 else 1.0
+        near = self._drive_by_end(grid, middle, side * along)
+        try:
+            way = plan(grid, here, (float(near[0]), float(near[1]))).points
+        except PlanningError:
+            return False
+        item.driven_by = True
+        self.pending.remove(item)
+        self.drive_bys["driven"] += 1
+        self._sign, self._start_pose, self._started = item, pose.copy(), time
+        self._driving_by, self._looks, self._failure, self.grid = True, [], "", grid
+        self._drive_by_far = (middle, -side * along)
+        self._begin_leg("drive_by", way, time)
+        return True
+
+    def _drive_by_end(self, grid: NavGrid, middle: np.ndarray,
+                      direction: np.ndarray) -> np.ndarray:
+        """The farthest point up to ``half_width + drive_by_margin`` from ``middle`` along
+        ``direction`` that a straight drive from ``middle`` reaches (a corridor may end
+        before, or a desk stand in the way)."""
+        reach = self.p.half_width + self.p.drive_by_margin
+        for r in np.arange(reach, 0.0, -0.4):
+            end = middle + r * direction
+            if grid.segment_free(middle, end):
+                return end
+        return middle
+
+    def _drive_along(self, time: float, pose: np.ndarray) -> None:
+        """At the drive-by's near end: straight along the wall to its far end.
+
+        The far end is found on the map of what the robot saw on its way to the
+        near one, as far as a straight drive from the middle reaches; the near
+        end lies on the same line, so the whole drive is along free floor.
+        """
+        assert self._drive_by_far is not None and self._sign is not None
+        (middle, direction), self._drive_by_far = self._drive_by_far, None
+        built = self._search_map(self._sign, time)
+        if built is not None:
+            self.grid = self._grid(*built)
+        assert self.grid is not None
+        end = self._drive_by_end(self.grid, middle, direction)
+        self._begin_leg("drive_by", np.vstack([pose[:2], middle, end]), time)
+
+    def _driven_by(self, time: float, pose: np.ndarray) -> None:
+        """The close look is over: on into the room by the door it found, or back."""
+        item = self._sign
+        assert item is not None
+        sign = item.sign
+        built = self._search_map(item, time)
+        if built is not None:
+            local_map, positions = built
+            door = find_door(local_map, sign, half_width=self.p.half_width)
+            if door is not None and door.inside - self.p.margin >= self.p.depth_min \
+                    and self._go_to_door(time, pose, door, self._grid(local_map, positions)):
+                self.drive_bys["found"] += 1
+                self._driving_by = False
+                return
+        # not there (or shut): back to where the robot was; the sign waits for a later pass
+        item.last_try = (float(pose[0]), float(pose[1]))
+        self.pending.append(item)
+        way = np.vstack([pose[:2], self._start_pose[:2]])
+        if self.grid is not None:
+            try:
+                way = plan(self.grid, (float(pose[0]), float(pose[1])),
+                           tuple(self._start_pose[:2])).points
+            except PlanningError:
+                pass
+        self._begin_leg("drive_back", way, time)
+
+    def _revive(self, time: float, here: tuple[float, float]) -> None:
+        """Seek again the doors of signs passed closer than ``revisit_distance`` once more."""
+        for item in list(self.dormant):
+            if item.revisits >= self.p.revisits:
+                self.dormant.remove(item)
+                continue
+            if math.hypot(here[0] - item.sign.x, here[1] - item.sign.y) \
+                    > self.p.revisit_distance:
+                continue
+            self.dormant.remove(item)
+            if item.result is not None:
+                self.results.remove(item.result)
+            item.revisits += 1
+            item.last_try, item.result = None, None
+            item.scans_from = time - self.p.window  # this pass: odometry drifted since the last
+            self.pending.append(item)
 
     def _begin_leg(self, phase: str, path: np.ndarray, time: float,
                    face_after: bool = False) -> None:
@@ -571,7 +495,16 @@ class RoomVisitor:
         assert leg is not None
         v, w, outcome = leg.step(time, pose, timeout=self.p.leg_timeout,
                                  stall_time=self.p.stall_time, scale=self._scale,
-                                 held_time=self.p.held_time)
+                                 held_time=self.p.held_time, echoes=self.echoes)
+        if self.phase in ("drive_by", "drive_back") and outcome:
+            if self.phase == "drive_back":
+                self.phase = "align"
+            elif outcome == "arrived" and self._drive_by_far is not None:
+                self._drive_along(time, pose)
+            else:  # at the far end, or stopped on the way (it may have seen the door)
+                self._drive_by_far = None
+                self._driven_by(time, pose)
+            return 0.0, 0.0
         if outcome == "held":
             failure = f"{self.phase}: held by the collision monitor"
             if self.phase == "enter" and self._face_after and not self._looks:
@@ -712,7 +645,12 @@ class RoomVisitor:
         """Turn on the spot to the heading the visit began with."""
         turn = self._turn_to(float(self._start_pose[2]), pose)
         if turn is None:
-            self._end(time, "failed" if self._failure else "visited")
+            if self._driving_by:  # no visit: the behaviour it interrupted goes on
+                self._driving_by = False
+                self.drive_bys["time_s"] += time - self._started
+                self.phase, self._leg, self._sign = "idle", None, None
+            else:
+                self._end(time, "failed" if self._failure else "visited")
             return 0.0, 0.0
         return 0.0, turn
 
@@ -732,6 +670,9 @@ class RoomVisitor:
         by = {s: sum(r.status == s for r in self.results) for s in ("visited", "not_found",
                                                                       "failed")}
         return {**by, "pending": len(self.pending), "doors_refined": self._refined,
+                "doors_driven_by": self.drive_bys["driven"],
+                "doors_found_driving_by": self.drive_bys["found"],
+                "drive_by_time_s": round(self.drive_bys["time_s"], 1),
                 "time_s": round(sum(r.finished - r.started for r in self.results
                                     if r.status != "not_found"), 1),
                 "rooms": [r.as_dict() for r in self.results]}
