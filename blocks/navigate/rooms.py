@@ -338,18 +338,24 @@ class RoomVisitor:
             if built is None:
                 continue
             local_map, positions = built
-            door = find_door(local_map, sign, half_width=self.p.half_width)
-            if door is None or door.inside - self.p.margin < self.p.depth_min:
+            door = self._enterable_door(local_map, sign)
+            if door is None:
                 if self._may_drive_by(item, here) and self._start_drive_by(
                         time, pose, item, self._grid(local_map, positions)):
                     return True
                 continue
-            self._sign, self._start_pose, self._started = item, pose.copy(), time
             if self._go_to_door(time, pose, door, self._grid(local_map, positions)):
                 self.pending.remove(item)
+                self._sign, self._start_pose, self._started = item, pose.copy(), time
                 return True
-            self._sign = None
         return False
+
+    def _enterable_door(self, local_map: Any, sign: SignRef) -> DoorEstimate | None:
+        """The sign's door on ``local_map`` if floor deep enough to look round is seen behind it."""
+        door = find_door(local_map, sign, half_width=self.p.half_width)
+        if door is None or door.inside - self.p.margin < self.p.depth_min:
+            return None
+        return door
 
     def _search_map(self, item: _Pending, time: float) -> tuple[Any, np.ndarray] | None:
         """The local map to seek a sign's door on, and where its scans were taken.
@@ -383,17 +389,17 @@ class RoomVisitor:
             here[0] - item.sign.x, here[1] - item.sign.y) <= self.p.drive_by_distance
 
     def _start_drive_by(self, time: float, pose: np.ndarray, item: _Pending,
-                     grid: NavGrid) -> bool:
+                        grid: NavGrid) -> bool:
         """Drive along the sign's wall, close, to look for its door; False if not now."""
         sign = item.sign
         here = (float(pose[0]), float(pose[1]))
         normal = np.array([math.cos(sign.facing), math.sin(sign.facing)])
         along = np.array([-normal[1], normal[0]])
         # the standoff asked for, else the nearest free one (a stray echo near the wall)
-        standoffs = self.p.drive_by_standoff + np.array([0.0, 0.2, -0.2, 0.4, 0.6])
-        middle = next((np.array([sign.x, sign.y]) + d * normal for d in standoffs
-                       if d > 0.3 and grid.is_free(sign.x + d * normal[0],
-                                                   sign.y + d * normal[1])), None)
+        spots = [np.array([sign.x, sign.y]) + d * normal
+                 for d in self.p.drive_by_standoff + np.array([0.0, 0.2, -0.2, 0.4, 0.6])
+                 if d > 0.3]
+        middle = next((spot for spot in spots if grid.is_free(*spot)), None)
         if middle is None:
             return False  # no floor in front of the sign on the map yet
         # the near end first; the far one once there, on the map of what it saw meanwhile
@@ -444,12 +450,11 @@ class RoomVisitor:
         """The close look is over: on into the room by the door it found, or back."""
         item = self._sign
         assert item is not None
-        sign = item.sign
         built = self._search_map(item, time)
         if built is not None:
             local_map, positions = built
-            door = find_door(local_map, sign, half_width=self.p.half_width)
-            if door is not None and door.inside - self.p.margin >= self.p.depth_min \
+            door = self._enterable_door(local_map, item.sign)
+            if door is not None \
                     and self._go_to_door(time, pose, door, self._grid(local_map, positions)):
                 self.drive_bys["found"] += 1
                 self._driving_by = False
