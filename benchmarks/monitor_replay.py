@@ -20,8 +20,12 @@ stopped elsewhere
 The commands are the ones recorded, so a rule is judged on what the robot
 did, not on what it would have done instead.
 
-    semmap sweep graphs/semantic_mapping.yaml --worlds gen:any:0-9 --seeds 0 --steps 6000 --out runs/dev
+    semmap sweep graphs/semantic_mapping.yaml --worlds gen:any:0-9 --seeds 0 --steps 6000 \
+        --set collision_monitor=false --set retry_frontiers=0 --out runs/dev
     python benchmarks/monitor_replay.py runs/dev
+
+Runs with the monitor on (the default) can be replayed too: their contacts
+are the ones it let through, and their commands the ones it passed.
 """
 from __future__ import annotations
 
@@ -87,8 +91,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"no recorded runs (runs/*/sonar.npz) under {', '.join(map(str, args.sweeps))}",
               file=sys.stderr)
         return 2
-    rules = {"arcs (the monitor's default)": MonitorParams(),
-             "arcs + triangulated echoes": replace(MonitorParams(), triangulate=True)}
+    rules = {"arcs (the monitor's default: 1 s of echoes)": MonitorParams(),
+             "arcs + triangulated echoes": replace(MonitorParams(), triangulate=True),
+             "arcs, 3 s of echoes": replace(MonitorParams(), memory=3.0),
+             "arcs, 6 s of echoes": replace(MonitorParams(), memory=6.0)}
     print(f"{len(runs)} runs")
     print("| rule | contacts foreseen | stopped elsewhere |")
     print("| --- | --- | --- |")
