@@ -682,3 +682,35 @@ def test_a_curve_only_the_monitor_would_stop_is_crept_round_not_failed():
     assert explorer.phase == "drive" and not any("failed" in e for e in explorer.result.log)
     assert (v, w) != (0.3, 0.8) and abs(v) <= 0.15 + 1e-9 and abs(w) <= 0.6 + 1e-9
     assert explorer._echoes.collision_time(pose, v, w) == math.inf
+
+
+@pytest.mark.parametrize("monitored", [False, True])
+def test_a_robot_boxed_in_creeps_the_way_the_monitor_lets_it_instead_of_ending_stuck(monitored):
+    """An echo at its front-right corner and one close behind: the guard refuses the first
+    command of every way and a back-off too; with a monitor, it turns clear on the spot."""
+    guard = SonarGuard.for_robot(ATRV)
+    start = np.array([2.0, 3.0, 0.0])
+
+    def ranges(pose):
+        r = np.full(16, 4.0)
+        if np.hypot(*(pose[:2] - start[:2])) < 0.05 and abs(pose[2]) < 0.35:
+            r[ATRV.sonar_names.index("FrRt1")] = 0.15
+            r[ATRV.sonar_names.index("Bk1")] = 0.2
+        return r
+
+    params = ExploreParams(monitor=MonitorParams() if monitored else None, max_failures=6,
+                           max_attempts=10, bump_memory=0.0)
+    explorer = FrontierExplorer(lambda: room_map(), guard, params)
+    robot = PointRobot(*start)
+    for tick in range(400):
+        out = explorer.step(0.1 * tick, robot.pose, ranges(robot.pose), follower_done=True)
+        if out is None:
+            break
+        robot.move(*out)
+    boxed = [e for e in explorer.result.log if "boxed in" in e]
+    if monitored:
+        assert explorer.result.boxed_in == 1 and len(boxed) == 1
+        assert explorer.result.end_reason != "stuck" and explorer.result.goals_reached >= 1
+        assert np.hypot(*(robot.pose[:2] - start[:2])) > 0.5
+    else:
+        assert explorer.result.end_reason == "stuck" and not boxed

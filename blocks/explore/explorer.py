@@ -142,7 +142,12 @@ class ExploreParams:
         nearest slow motion it lets through
         (:meth:`~blocks.navigate.collision_monitor.EchoMemory.nearest_clear`),
         without failing the way: a way is failed for a stop the guard
-        itself sees, or for no progress.
+        itself sees, or for no progress.  Boxed in, where the guard has
+        refused the first command of ``jam_failures`` ways in a row (an echo
+        close ahead and one close behind, a retrace refused too), planning
+        again cannot free the robot and each way would fail at once until it
+        ends ``stuck``: the next ways creep the same way, the nearest motion
+        the monitor lets through, until one gets going.
     door_narrow, door_approach, door_speed
         A way that passes nearer than ``door_narrow`` (m) to walls on both
         sides goes through a doorway (:mod:`blocks.navigate.doorway`): the
@@ -250,6 +255,7 @@ class ExploreResult:
     bumps: int = 0
     stalls: int = 0
     holds: int = 0
+    boxed_in: int = 0
     frontiers_out_of_reach: int = 0
     frontiers_given_up: int = 0
     frontiers_retried: int = 0
@@ -318,6 +324,7 @@ class FrontierExplorer:
         self._leg_started = self._progress_time = self._next_look = self._back_until = 0.0
         self._best = 0.0
         self._failures = 0
+        self._refused = 0  # ways in a row whose first command the guard refused
         self._attempts: list[tuple[tuple[float, float], int]] = []
         self._forgotten: list[tuple[float, float]] = []  # reached or given up
         self._given_up: list[tuple[float, float]] = []
@@ -813,6 +820,15 @@ class FrontierExplorer:
             if leg.remaining <= self.p.close_enough and not self._pending:
                 self._reached(time)  # at the wall the goal is beside
                 return 0.0, 0.0
+            creep = self._creep_boxed_in(v, w)
+            if creep is not None:
+                return creep
+            if self._best == 0.0 and time - self._leg_started < 0.5:
+                self._refused += 1
+                if self._refused == self.p.jam_failures and self._echoes is not None:
+                    self.result.boxed_in += 1
+                    self.result.log.append({"t": round(time, 1), "boxed in": "creeping",
+                                            "at": [round(float(x), 2) for x in pose[:2]]})
             self.result.blocked_ahead += 1
             self._remember_blocked(pose, ranges, v)
             self._failed(time, f"blocked {why}")
@@ -821,6 +837,8 @@ class FrontierExplorer:
             return 0.0, 0.0
         if leg.progress > self._best + 0.05 or status == "turning":
             self._best, self._progress_time = max(self._best, leg.progress), time
+            if leg.progress > 0.05:
+                self._refused = 0  # it got going
         if time - self._progress_time > self.p.stall_time:
             self._failed(time, "no progress")
             self.phase = "plan"
@@ -831,6 +849,13 @@ class FrontierExplorer:
                 self._reached(time)
                 return 0.0, 0.0
         return float(v), float(w)
+
+    def _creep_boxed_in(self, v: float, w: float) -> tuple[float, float] | None:
+        """Boxed in (see ``held_time`` in :class:`ExploreParams`): the slow motion nearest
+        to (v, w) that the monitor lets through, or None (not boxed in, or no such motion)."""
+        if self._echoes is None or self._refused < self.p.jam_failures:
+            return None
+        return self._echoes.nearest_clear(self._odometry, v, w)
 
     def _blocked(self, ranges: np.ndarray, v: float, w: float, narrow: bool = False) -> str:
         """Why the motion (v, w) is refused: by the sonar guard on this tick's echoes (its
@@ -937,7 +962,7 @@ class FrontierExplorer:
     def _reached(self, time: float) -> None:
         assert self.target is not None
         self.result.goals_reached += 1
-        self._failures = self._retraces = 0
+        self._failures = self._retraces = self._refused = 0
         self._streak.clear()
         self._forget(self.target.goal)
         self._abandon("plan")
