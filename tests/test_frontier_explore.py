@@ -714,3 +714,24 @@ def test_a_robot_boxed_in_creeps_the_way_the_monitor_lets_it_instead_of_ending_s
         assert np.hypot(*(robot.pose[:2] - start[:2])) > 0.5
     else:
         assert explorer.result.end_reason == "stuck" and not boxed
+
+
+def test_a_look_round_that_cannot_turn_counts_as_taken():
+    """With no frontier left the explorer looks round on the spot before it calls the
+    floor explored; a robot that cannot turn (a monitor stopping it at furniture) waited
+    for that turn for ever.  Now the look counts as taken after ``stall_time``."""
+    explorer = FrontierExplorer(lambda: room_map(opening=False), GUARD,
+                                ExploreParams(stall_time=5.0))
+    robot = PointRobot(3.0, 3.0)
+    assert run(explorer, robot, 200, ranges=CLEAR) == 81  # a whole turn at 0.8 rad/s...
+    assert explorer.result.end_reason == "explored"
+    assert not any("look round" in e for e in explorer.result.log)
+    explorer = FrontierExplorer(lambda: room_map(opening=False), GUARD,
+                                ExploreParams(stall_time=5.0))
+    pinned = PointRobot(3.0, 3.0)
+    for tick in range(200):  # ...unless nothing it asks moves the robot
+        explorer.step(0.1 * tick, pinned.pose, CLEAR, follower_done=True)
+        if explorer.ended:
+            break
+    assert explorer.result.end_reason == "explored" and 50 <= tick <= 60
+    assert [e["look round"] for e in explorer.result.log if "look round" in e] == ["cannot turn"]

@@ -47,6 +47,7 @@ from blocks.navigate.collision_monitor import EchoMemory, HeldClock, MonitorPara
 from blocks.navigate.doorway import Doorway, doorway_legs, find_doorway
 from blocks.navigate.grid import NavGrid, cells_near, inflate, unblock_traversed
 from blocks.navigate.guard import SonarGuard
+from blocks.navigate.legs import TurnWatch
 from blocks.navigate.planner import PlanningError, plan
 from blocks.navigate.pursuit import PurePursuit, PursuitParams
 
@@ -332,6 +333,7 @@ class FrontierExplorer:
         self._retry_rounds = 0
         self._looks: list[tuple[float, float]] = []  # where it looked round
         self._spun = self._heading = 0.0
+        self._turns = TurnWatch(stall_time=self.p.stall_time)  # a look round that cannot turn
         self._track: list[tuple[float, float, float]] = []  # time, x, y every 0.1 m
         self._samples: list[tuple[float, float]] = []  # (distance driven, known area)
         self._driven = 0.0
@@ -422,7 +424,7 @@ class FrontierExplorer:
         if self.phase == "unpin":
             return self._unpin(time, ranges, bumpers)
         if self.phase == "spin":
-            return self._spin(pose)
+            return self._spin(time, pose)
         if self.phase == "align":
             return self._align(time, pose, ranges)
         if self.phase == "plan" and self._retrace_pending:
@@ -708,11 +710,17 @@ class FrontierExplorer:
     def _looked_here(self, pose: np.ndarray) -> bool:
         return self._near((float(pose[0]), float(pose[1])), self._looks)
 
-    def _spin(self, pose: np.ndarray) -> tuple[float, float]:
-        """Turn a whole turn on the spot (measured, not timed), then choose again."""
+    def _spin(self, time: float, pose: np.ndarray) -> tuple[float, float]:
+        """Turn a whole turn on the spot (measured, not timed), then choose again; a turn
+        that gets nowhere for ``stall_time`` counts as done."""
         self._spun += abs(math.remainder(float(pose[2]) - self._heading, 2 * math.pi))
         self._heading = float(pose[2])
-        if self._spun >= 2 * math.pi:
+        stalled = self._spun < 2 * math.pi and self._turns.stalled(time, self._heading,
+                                                                   "look round")
+        if stalled:
+            self.result.log.append({"t": round(time, 1), "look round": "cannot turn",
+                                    "at": [round(float(pose[0]), 2), round(float(pose[1]), 2)]})
+        if self._spun >= 2 * math.pi or stalled:
             self.phase = "plan"
             return 0.0, 0.0
         return 0.0, self.p.spin_rate

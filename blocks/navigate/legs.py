@@ -14,7 +14,7 @@ import numpy as np
 from .collision_monitor import EchoMemory, HeldClock
 from .pursuit import PurePursuit, wrap
 
-__all__ = ["Leg", "dedupe", "turn_rate"]
+__all__ = ["Leg", "TurnWatch", "dedupe", "turn_rate"]
 
 
 @dataclass
@@ -65,6 +65,49 @@ class Leg:
             v, w = echoes.nearest_clear(pose, v, w) or (v, w)
         self.last = (float(v), float(w))
         return float(v), float(w), ""
+
+
+@dataclass
+class TurnWatch:
+    """Whether a turn on the spot still gets anywhere.
+
+    Why: a turn is measured, not timed (it ends at a heading, or after a
+    whole turn), so a turn that cannot be made (a collision monitor that
+    stops it with furniture at a corner, a body wedged) would be asked for
+    for ever while the behaviour holds control.  A turn whose heading has
+    not moved by ``headway`` (rad) for ``stall_time`` (s) is given up.  Asked
+    every tick of a turn; a gap of more than ``gap`` (s) between two asks, or
+    another ``what``, starts a new turn.
+
+    Examples
+    --------
+    >>> watch = TurnWatch(stall_time=5.0)
+    >>> [watch.stalled(k / 2, 1.0, "spin") for k in range(12)][-3:]  # every 0.5 s
+    [False, False, True]
+    >>> watch.stalled(6.0, 1.0, "spin")  # given up: the next ask starts a new turn
+    False
+    >>> watch.stalled(20.0, 1.0, "spin")  # a later turn, not the stalled one
+    False
+    """
+
+    stall_time: float = 10.0
+    headway: float = 0.05
+    gap: float = 1.0
+    given_up: int = 0
+    _mark: tuple[float, float, str] | None = None  # since when, at what heading, which turn
+    _last: float = -math.inf
+
+    def stalled(self, time: float, heading: float, what: str) -> bool:
+        """True (once, counted) when the turn called ``what`` has stalled."""
+        mark, self._last, last = self._mark, time, self._last
+        if mark is None or mark[2] != what or time - last > self.gap \
+                or abs(wrap(heading - mark[1])) >= self.headway:
+            self._mark = (time, heading, what)
+            return False
+        if time - mark[0] <= self.stall_time:
+            return False
+        self._mark, self.given_up = None, self.given_up + 1
+        return True
 
 
 def turn_rate(heading: float, theta: float, rate: float, tolerance: float) -> float | None:

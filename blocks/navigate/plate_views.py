@@ -38,7 +38,7 @@ import numpy as np
 from .collision_monitor import EchoMemory
 from .grid import NavGrid, inflate, unblock_traversed
 from .guard import SonarGuard
-from .legs import Leg, dedupe, turn_rate
+from .legs import Leg, TurnWatch, dedupe, turn_rate
 from .planner import PlanningError, plan
 from .pursuit import PurePursuit, PursuitParams
 
@@ -273,6 +273,7 @@ class PlateViewer:
         self._reason = ""
         self._ranges: np.ndarray | None = None
         self._scale = 1.0
+        self._turns = TurnWatch(stall_time=self.p.stall_time)  # turns that cannot be made
 
     @property
     def active(self) -> bool:
@@ -410,7 +411,8 @@ class PlateViewer:
         assert self._plate is not None
         heading = math.atan2(self._plate.y - pose[1], self._plate.x - pose[0])
         w = turn_rate(heading, float(pose[2]), self.p.spin_rate, self.p.heading_tolerance)
-        if w is not None and not self._blocked(0.0, w):
+        if w is not None and not self._blocked(0.0, w) \
+                and not self._turns.stalled(time, float(pose[2]), "face"):
             return 0.0, w
         self.phase, self.look_at = "look", self._plate  # facing it, or as near as it may turn
         self._look_until = time + self.p.look_time
@@ -448,7 +450,8 @@ class PlateViewer:
     def _align(self, time: float, pose: np.ndarray) -> tuple[float, float]:
         w = turn_rate(float(self._start[2]), float(pose[2]), self.p.spin_rate,
                       self.p.heading_tolerance)
-        if w is None or self._blocked(0.0, w):
+        if w is None or self._blocked(0.0, w) \
+                or self._turns.stalled(time, float(pose[2]), "align"):
             self._end(time, self._status or "unread", self._reason)
             return 0.0, 0.0
         return 0.0, w
@@ -469,6 +472,6 @@ class PlateViewer:
         statuses = ("read", "unread", "not needed", "no view", "too far", "failed")
         counts = {s.replace(" ", "_"): sum(r.status == s for r in self.results)
                   for s in statuses}
-        return {**counts, "pending": len(self.queue),
+        return {**counts, "pending": len(self.queue), "turns_given_up": self._turns.given_up,
                 "time_s": round(sum(r.finished - r.started for r in self.results), 1),
                 "plates": [r.as_dict() for r in self.results]}

@@ -62,7 +62,7 @@ import numpy as np
 from .collision_monitor import EchoMemory
 from .doors import DoorEstimate, SignRef, find_door, next_look
 from .grid import NavGrid, inflate, unblock_traversed
-from .legs import Leg, dedupe, turn_rate
+from .legs import Leg, TurnWatch, dedupe, turn_rate
 from .planner import PlanningError, plan
 from .pursuit import PurePursuit, PursuitParams, wrap
 
@@ -117,7 +117,10 @@ class RoomVisitParams:
         straight line on its axis and needs none.
     leg_timeout, stall_time
         Seconds a leg may take, and may go without progress, before it is
-        abandoned and the robot heads back.
+        abandoned and the robot heads back.  A turn on the spot (the look
+        round, facing the door, lining up at the end) that gets nowhere for
+        ``stall_time`` is given up too (run.json ``turns_given_up``): the look
+        counts as taken, the door is gone through as first found.
     held_time
         A leg whose command a collision monitor stops for this long (s) is
         abandoned too (:class:`~blocks.navigate.legs.Leg`); before the door,
@@ -259,6 +262,7 @@ class RoomVisitor:
         self._failure = ""
         self._spun = 0.0
         self._heading = 0.0
+        self._turns = TurnWatch(stall_time=self.p.stall_time)  # turns that cannot be made
         self._scale = 1.0
         self._driving_by = False  # the door is sought from in front of the sign
         self._drive_by_far: tuple[np.ndarray, np.ndarray] | None = None  # middle, direction
@@ -546,7 +550,7 @@ class RoomVisitor:
         sign = 1.0 if self._facing_out else -1.0
         heading = math.atan2(sign * self.door.normal[1], sign * self.door.normal[0])
         turn = self._turn_to(heading, pose)
-        if turn is not None:
+        if turn is not None and not self._turns.stalled(time, float(pose[2]), "face"):
             return 0.0, turn
         # On the way out only the last scans: odometry has drifted during the looks, and
         # the door must be found where it is in the frame the robot drives in now.
@@ -588,7 +592,7 @@ class RoomVisitor:
         self._spun += abs(wrap(float(pose[2]) - self._heading))
         self._heading = float(pose[2])
         remaining = 2 * math.pi - self._spun
-        if remaining > 0.02:
+        if remaining > 0.02 and not self._turns.stalled(time, float(pose[2]), "spin"):
             return 0.0, min(self.p.spin_rate, max(0.2, 1.5 * remaining))
         self._looks.append((float(pose[0]), float(pose[1])))
         if self._look_again(time, pose):
@@ -649,7 +653,7 @@ class RoomVisitor:
     def _align(self, time: float, pose: np.ndarray) -> tuple[float, float]:
         """Turn on the spot to the heading the visit began with."""
         turn = self._turn_to(float(self._start_pose[2]), pose)
-        if turn is None:
+        if turn is None or self._turns.stalled(time, float(pose[2]), "align"):
             if self._driving_by:  # no visit: the behaviour it interrupted goes on
                 self._driving_by = False
                 self.drive_bys["time_s"] += time - self._started
@@ -675,6 +679,7 @@ class RoomVisitor:
         by = {s: sum(r.status == s for r in self.results) for s in ("visited", "not_found",
                                                                       "failed")}
         return {**by, "pending": len(self.pending), "doors_refined": self._refined,
+                "turns_given_up": self._turns.given_up,
                 "doors_driven_by": self.drive_bys["driven"],
                 "doors_found_driving_by": self.drive_bys["found"],
                 "drive_by_time_s": round(self.drive_bys["time_s"], 1),
