@@ -120,7 +120,18 @@ def score_places(pm: PlaceMap, world: Any, *, names: Mapping[str, str],
         ``corridors``: per true corridor/hall: ``name``, ``places`` (ids holding
         >= 5 % of its observed part), ``one_place``; and the summary
         ``mean_iou`` (all rooms), ``mean_iou_explored``, ``explored_rooms``,
-        ``named_rooms``, ``one_place_rooms``, ``doors_found``, ``rooms``.
+        ``named_rooms``, ``one_place_rooms``, ``doors_found``, ``rooms``;
+        ``unsigned``: per true room no sign names with an open door (any room
+        when the world lists no doors): ``name``, ``kind``, ``place`` (the
+        segmented place holding most of its observed part, or None),
+        ``named_as`` (the sign text that place carries, or None), ``iou`` (that
+        place vs the whole true room; 0 when no place holds it or the place is
+        named after another room: the semantic map has no place of its own
+        for it), ``coverage``; with ``unsigned_count``,
+        ``unsigned_mean_iou`` and ``unsigned_places`` (how many have an
+        unnamed place of their own, IoU at least 0.5); and ``open_count``,
+        ``open_mean_iou``: every room with an open door, signed or not
+        (issue 20's measure: a signed room's IoU as in ``rooms``).
     """
     shape, res, origin = pm.labels.shape, pm.resolution, pm.origin
     free = world_free_on_grid(world, shape, res, origin)
@@ -179,6 +190,9 @@ def score_places(pm: PlaceMap, world: Any, *, names: Mapping[str, str],
         big = [f"P{k}" for k in np.flatnonzero(counts) if k and counts[k] >= 0.05 * len(hits)]
         corridors.append({"name": place.name, "places": big, "one_place": len(big) == 1,
                           "coverage": float(seen.sum() / max(masks[place.name].sum(), 1))})
+    unsigned = _unsigned_rooms(pm, world, masks, observed, owner, names, signed)
+    open_ious = [r["iou"] for r in rooms if _has_open_door(world, r["name"])]
+    open_ious += [r["iou"] for r in unsigned]
     ious = [r["iou"] for r in rooms]
     exp = [r["iou"] for r in rooms if r["coverage"] >= explored]
     return {
@@ -189,4 +203,46 @@ def score_places(pm: PlaceMap, world: Any, *, names: Mapping[str, str],
         "explored_rooms": len(exp), "named_rooms": sum(bool(r["place"]) for r in rooms),
         "one_place_rooms": sum(r["one_place"] for r in rooms),
         "doors_found": sum(r["door_found"] for r in rooms), "room_count": len(rooms),
+        "unsigned": unsigned, "unsigned_count": len(unsigned),
+        "unsigned_mean_iou": float(np.mean([r["iou"] for r in unsigned])) if unsigned else 0.0,
+        "unsigned_places": sum(r["iou"] >= 0.5 for r in unsigned),
+        "open_count": len(open_ious),
+        "open_mean_iou": float(np.mean(open_ious)) if open_ious else 0.0,
     }
+
+
+def _has_open_door(world: Any, name: str) -> bool:
+    """Whether a true place has a door that is not shut (True when the world lists no doors)."""
+    if not world.doors:
+        return True
+    return any(name in door.between and not door.closed for door in world.doors)
+
+
+def _unsigned_rooms(pm: PlaceMap, world: Any, masks: Mapping[str, np.ndarray],
+                    observed: np.ndarray, owner: Mapping[str, int], names: Mapping[str, str],
+                    signed: set[str]) -> list[dict[str, Any]]:
+    """Each true room without a sign that a robot could enter, against the place that holds it.
+
+    Why: an unsigned room should become an unnamed place of its own in the
+    semantic map; a room a sign does not name is still a room a robot is sent
+    to ("go to a room next to the kitchen") and its floor belongs in the map.
+    """
+    rows = []
+    for place in world.places:
+        if place.name in signed or place.kind in ("Corridor", "Hall") \
+                or not _has_open_door(world, place.name):
+            continue
+        truth = masks[place.name]
+        n_true = int(truth.sum())
+        k = owner[place.name]
+        pid = f"P{k}" if k else None
+        named_as = names.get(pid) if pid else None
+        iou = 0.0
+        if k and named_as is None:
+            region = pm.labels == k
+            union = int((region | truth).sum())
+            iou = int((region & truth).sum()) / union if union else 0.0
+        rows.append({"name": place.name, "kind": place.kind, "place": pid, "named_as": named_as,
+                     "iou": iou,
+                     "coverage": int((truth & observed).sum()) / n_true if n_true else 0.0})
+    return rows

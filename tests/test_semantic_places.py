@@ -219,3 +219,28 @@ def test_polygon_mask_is_the_even_odd_rule_at_cell_centres():
             expected = reference(poly, shape, res, origin)
             assert np.array_equal(polygon_mask_on_grid(poly, shape, res, origin), expected)
     assert reference(shapes[0], (48, 44), 0.25, (-0.5, -0.5, 0.0)).sum() > 100
+
+
+def test_a_room_without_a_sign_is_scored_against_its_own_unnamed_place():
+    """With the ADMIN plate taken down, ADMIN is an unsigned room: its place must exist
+    and carry no name.  Naming that place after another room's sign, or shutting the
+    room's door, changes what is scored."""
+    import dataclasses
+    c = office()
+    w = dataclasses.replace(c["world"], signs=[s for s in c["world"].signs if s.text != "ADMIN"])
+    signs = [s for s in c["signs"] if s["text"] != "ADMIN"]
+    names = place_names(signs, attach_signs(c["pm"], signs))
+    score = score_places(c["pm"], w, names=names)
+    assert score["room_count"] == 13 and score["unsigned_count"] == 1
+    (admin,) = score["unsigned"]
+    assert admin["name"] == "ADMIN" and admin["named_as"] is None and admin["iou"] >= 0.9
+    assert score["unsigned_places"] == 1 and score["open_count"] == 14
+    assert score["open_mean_iou"] >= 0.95
+
+    wrong = dict(names, **{admin["place"]: "KITCHEN"})
+    (misnamed,) = score_places(c["pm"], w, names=wrong)["unsigned"]
+    assert misnamed["named_as"] == "KITCHEN" and misnamed["iou"] == 0.0
+
+    shut = [dataclasses.replace(d, closed=True) if "ADMIN" in d.between else d for d in w.doors]
+    closed = score_places(c["pm"], dataclasses.replace(w, doors=shut), names=names)
+    assert closed["unsigned_count"] == 0 and closed["open_count"] == 13
