@@ -119,15 +119,15 @@ def score_places(pm: PlaceMap, world: Any, *, names: Mapping[str, str],
         ``door_width_error`` (m, estimate - truth), ``door_distance`` (m);
         ``corridors``: per true corridor/hall: ``name``, ``places`` (ids holding
         >= 5 % of its observed part), ``one_place``; and the summary
-        ``mean_iou`` (all rooms), ``mean_iou_explored``, ``explored_rooms``,
+        ``mean_iou`` (all signed rooms), ``mean_iou_explored``, ``explored_rooms``,
         ``named_rooms``, ``one_place_rooms``, ``doors_found``, ``rooms``;
         ``unsigned``: per true room no sign names with an open door (any room
         when the world lists no doors): ``name``, ``kind``, ``place`` (the
         segmented place holding most of its observed part, or None),
         ``named_as`` (the sign text that place carries, or None), ``iou`` (that
-        place vs the whole true room; 0 when no place holds it or the place is
-        named after another room: the semantic map has no place of its own
-        for it), ``coverage``; with ``unsigned_count``,
+        one place vs the whole true room; 0 when no place holds it or the
+        place carries any sign's name: the semantic map has no place of its
+        own for it), ``coverage``; with ``unsigned_count``,
         ``unsigned_mean_iou`` and ``unsigned_places`` (how many have an
         unnamed place of their own, IoU at least 0.5); and ``open_count``,
         ``open_mean_iou``: every room with an open door, signed or not

@@ -358,3 +358,39 @@ def test_the_docs_table_lists_every_option_of_the_command():
     options = {opt for p in command.params for opt in getattr(p, "opts", [])
                if opt.startswith("--")} - {"--help"}
     assert options <= documented, options - documented
+
+
+def test_the_pool_has_no_more_workers_than_runs(monkeypatch, tmp_path):
+    """A worker with no run to do may still be starting when the last run ends and the
+    pool goes; it then printed a traceback (seen when one quick run was left to do)."""
+    from concurrent.futures import Future
+    from types import SimpleNamespace
+
+    import pebble
+
+    from blocks.sweep.local import run_local
+
+    made = []
+
+    class Pool:
+        def __init__(self, max_workers, **_):
+            made.append(max_workers)
+            self.active = True
+
+        def schedule(self, fn, args, timeout=None):
+            future = Future()
+            future.set_result(None)
+            return future
+
+        def close(self):
+            self.active = False
+
+        def join(self):
+            pass
+
+    monkeypatch.setattr(pebble, "ProcessPool", Pool)
+    monkeypatch.setattr("blocks.sweep.local._outcome", lambda *a: {})
+    ended = []
+    config = SimpleNamespace(timeout_s=None)
+    run_local(["one run"], config, tmp_path, jobs=4, on_done=lambda task, out: ended.append(task))
+    assert made == [1] and ended == ["one run"]

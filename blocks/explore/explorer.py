@@ -257,6 +257,7 @@ class ExploreResult:
     stalls: int = 0
     holds: int = 0
     boxed_in: int = 0
+    looks_given_up: int = 0
     frontiers_out_of_reach: int = 0
     frontiers_given_up: int = 0
     frontiers_retried: int = 0
@@ -718,6 +719,7 @@ class FrontierExplorer:
         stalled = self._spun < 2 * math.pi and self._turns.stalled(time, self._heading,
                                                                    "look round")
         if stalled:
+            self.result.looks_given_up += 1
             self.result.log.append({"t": round(time, 1), "look round": "cannot turn",
                                     "at": [round(float(pose[0]), 2), round(float(pose[1]), 2)]})
         if self._spun >= 2 * math.pi or stalled:

@@ -93,9 +93,9 @@ class TurnWatch:
     stall_time: float = 10.0
     headway: float = 0.05
     gap: float = 1.0
-    given_up: int = 0
-    _mark: tuple[float, float, str] | None = None  # since when, at what heading, which turn
-    _last: float = -math.inf
+    given_up: int = field(default=0, init=False)
+    _mark: tuple[float, float, str] | None = field(default=None, init=False, repr=False)
+    _last: float = field(default=-math.inf, init=False, repr=False)  # the last ask
 
     def stalled(self, time: float, heading: float, what: str) -> bool:
         """True (once, counted) when the turn called ``what`` has stalled."""

@@ -69,6 +69,10 @@ def run_local(tasks: list[SweepTask], config: SweepConfig, root: str | Path, *, 
     """
     from pebble import ProcessPool
 
+    # No more workers than runs: a worker with nothing to do may still be starting up
+    # (unpickling its pool's semaphore) when the last run ends and the pool is torn
+    # down, and it then prints a traceback.
+    jobs = max(1, min(jobs, len(tasks)))
     context = multiprocessing.get_context("spawn")
     stop = context.Event()
     hard = hard_limit(config.timeout_s)
