@@ -160,3 +160,26 @@ def test_a_plate_high_on_the_followed_wall_is_read_from_across_the_corridor(cli,
         assert metrics["world"]["collisions"] == 0
     else:
         assert read == []
+
+
+@pytest.mark.parametrize("blocked", ["face", "align"])
+def test_a_turn_the_view_cannot_make_is_given_up(blocked):
+    """Facing the plate, or lining up again at the end, with the turn stopped (a monitor
+    at furniture, the guard hearing nothing): given up after ``stall_time``, not held."""
+    m = corridor_map()
+    positions = np.array([[x, 0.7] for x in np.arange(0.5, 8.0, 0.1)])
+    viewer = PlateViewer(lambda since, near: (m, positions))
+    robot = Robot((7.5, 0.7, 0.0))
+    viewer.want([PLATE], time=0.0)
+    phases = []
+    for k in range(1200):
+        command = viewer.step(k * 0.1, robot.pose)
+        phases.append(viewer.phase)
+        if command is None:
+            break
+        v, w = command
+        robot.move(v, 0.0 if viewer.phase == blocked else w)
+    assert command is None and not viewer.active
+    assert viewer.summary()["turns_given_up"] == 1
+    stalled = viewer.p.stall_time / 0.1
+    assert stalled <= phases.count(blocked) <= stalled + 5

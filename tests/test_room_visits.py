@@ -410,10 +410,10 @@ def test_a_visit_held_on_its_way_to_the_door_ends_failed_at_once():
     assert result.status == "failed" and "held by the collision monitor" in result.reason
 
 
-def _drive_visit(visitor, pose, *, turns_blocked: bool, seconds: float = 240.0):
-    """Integrate the visitor's commands on a point robot; with ``turns_blocked`` a turn on
-    the spot inside the room does not happen (a monitor stopping it at furniture).
-    Returns the phases met and the tick the visit ended on (or None)."""
+def _drive_visit(visitor, pose, *, blocked: str = "", seconds: float = 240.0):
+    """Integrate the visitor's commands on a point robot; in the phase ``blocked`` a turn
+    on the spot does not happen (a monitor stopping it at furniture).  Returns the phases
+    met and the tick the visit ended on (or None)."""
     phases = []
     for k in range(int(seconds / 0.1)):
         out = visitor.step(0.1 * k, pose)
@@ -421,28 +421,27 @@ def _drive_visit(visitor, pose, *, turns_blocked: bool, seconds: float = 240.0):
         if out is None or (k > 0 and visitor.phase == "idle"):
             return phases, k
         v, w = out
-        if turns_blocked and visitor.phase == "spin":
+        if visitor.phase == blocked:
             w = 0.0
         pose = pose + 0.1 * np.array([v * math.cos(pose[2]), v * math.sin(pose[2]), w])
     return phases, None
 
 
-def test_a_look_round_that_cannot_turn_is_given_up_and_the_visit_goes_on():
+@pytest.mark.parametrize("blocked, given_up", [("", 0), ("spin", 1), ("face", 2),
+                                               ("align", 1)])
+def test_a_turn_that_cannot_be_made_is_given_up_and_the_visit_goes_on(blocked, given_up):
     """A turn on the spot is measured, not timed: one a collision monitor keeps stopping
     (furniture at a corner of the body) held the visit, and the whole run, for ever.
-    Now it is given up after ``stall_time`` and the visit ends; a turn that can be made
-    is made in full."""
+    Now the look round, facing the door (in and out) and lining up at the end are each
+    given up after ``stall_time`` and the visit ends; turns that can be made are made."""
     local = corridor_and_room()
     positions = np.array([[0.5, 6.0], [2.0, 6.0]])
-    ended = {}
-    for blocked in (False, True):
-        visitor = RoomVisitor(lambda since, near: (local, positions),
-                              RoomVisitParams(stall_time=5.0, looks=1))
-        visitor.add_sign(SIGN, 0.0)
-        phases, ended[blocked] = _drive_visit(visitor, np.array([0.8, 6.0, 0.0]),
-                                              turns_blocked=blocked)
-        assert "spin" in phases and ended[blocked] is not None, phases[-1]
-        assert visitor.results[-1].status == "visited"
-        assert visitor.summary()["turns_given_up"] == int(blocked)
-        if blocked:  # it waited its 5 s (50 ticks) for the turn, no longer
-            assert 50 <= phases.count("spin") <= 55
+    visitor = RoomVisitor(lambda since, near: (local, positions),
+                          RoomVisitParams(stall_time=5.0, looks=1))
+    visitor.add_sign(SIGN, 0.0)
+    phases, ended = _drive_visit(visitor, np.array([0.8, 6.0, 0.0]), blocked=blocked)
+    assert {"spin", "face", "align"} <= set(phases) and ended is not None, phases[-1]
+    assert visitor.results[-1].status == "visited"
+    assert visitor.summary()["turns_given_up"] == given_up
+    if blocked:  # it waited its 5 s (50 ticks) for each such turn, no longer
+        assert 50 * given_up <= phases.count(blocked) <= 55 * given_up
