@@ -16,6 +16,9 @@ import numpy as np
 from blocks.maps.mapio import OccupancyMap, occupancy_map_from_world
 from semantic.places import PlaceMap
 
+#: True place kinds one passes through rather than visits: scored as corridors, not rooms.
+PASSAGE_KINDS = ("Corridor", "Hall")
+
 
 def true_map(world: Any) -> OccupancyMap:
     """The world's floor plan as a perfect map, with the outside of the building unknown.
@@ -182,7 +185,7 @@ def score_places(pm: PlaceMap, world: Any, *, names: Mapping[str, str],
         rooms.append(row)
     corridors = []
     for place in world.places:
-        if place.kind not in ("Corridor", "Hall"):
+        if place.kind not in PASSAGE_KINDS:
             continue
         seen = masks[place.name] & observed
         hits = pm.labels[seen]
@@ -229,7 +232,7 @@ def _unsigned_rooms(pm: PlaceMap, world: Any, masks: Mapping[str, np.ndarray],
     """
     rows = []
     for place in world.places:
-        if place.name in signed or place.kind in ("Corridor", "Hall") \
+        if place.name in signed or place.kind in PASSAGE_KINDS \
                 or not _has_open_door(world, place.name):
             continue
         truth = masks[place.name]
