@@ -27,3 +27,12 @@ def test_ground_truth_feeds_only_scoring_inputs(path):
 def test_the_contract_sees_the_main_graphs():
     names = {p.name for p in GRAPHS}
     assert {"semantic_mapping.yaml", "mapping.yaml", "ask.yaml"} <= names
+
+
+def test_the_behaviours_judge_motions_on_the_monitors_memory():
+    """The explorer and the room visits replay the monitor's echo memory to creep round
+    what it would stop: one graph parameter sets all three, so they cannot disagree."""
+    graph = load_graph(ROOT / "graphs" / "semantic_mapping.yaml", ["echo_memory=3"])
+    assert graph.nodes["monitor"].params["memory"] == 3.0
+    assert graph.nodes["explorer"].params["echo_memory"] == 3.0
+    assert graph.nodes["rooms"].params["echo_memory"] == 3.0

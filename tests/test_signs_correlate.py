@@ -373,6 +373,48 @@ def test_a_weak_wrong_reading_does_not_replace_a_good_one():
     assert smap.rejected() == []
 
 
+def test_a_misread_of_a_plate_is_the_same_plate_and_loses_the_vote():
+    """Readings of one plate closer than a plate's width are one plate whatever they say
+    (run gen:office:5: "OFFICE 182" beside eight reads of "OFFICE 102"); the text most
+    confident readings agree on names it."""
+    smap = SignMap()
+    for i in range(3):
+        smap.add(_s("OFFICE 102", 10.44 + 0.02 * i, 5.14, confidence=0.98))
+    smap.add(_s("OFFICE 182", 10.53, 5.08, confidence=0.52, rng=1.0))
+    (sign,) = smap.signs()
+    assert sign["text"] == "OFFICE 102" and sign["sightings"] == 4
+    assert smap.clusters[0].disputed
+    # one confident read each: the more confident names the plate, whichever came first
+    for order in ((0.91, 0.99), (0.99, 0.91)):
+        smap = SignMap()
+        smap.add(_s("MEETING ROOM" if order[0] < 0.95 else "MEETING ROOM 1", 5.11, 5.19,
+                    confidence=order[0]))
+        smap.add(_s("MEETING ROOM 1" if order[0] < 0.95 else "MEETING ROOM", 5.14, 5.15,
+                    confidence=order[1]))
+        assert [s["text"] for s in smap.signs()] == ["MEETING ROOM 1"]
+
+
+def test_weak_reads_do_not_outvote_a_clear_one_and_plates_a_width_apart_stay_apart():
+    smap = SignMap()
+    smap.add(_s("LIBRARY", 5.0, 7.0, confidence=0.9))
+    for _ in range(3):
+        smap.add(_s("LAB", 5.05, 7.0, confidence=0.45))
+    (sign,) = smap.signs(min_confidence=0.4)
+    assert sign["text"] == "LIBRARY" and not smap.clusters[0].disputed
+    # two confident readings 0.6 m apart: two plates (the merge radius alone would join them)
+    smap = SignMap()
+    smap.add(_s("LAB 1", 5.0, 7.0))
+    smap.add(_s("LAB 2", 5.6, 7.0))
+    assert len(smap) == 2
+    # with the rule turned off, even readings 5 cm apart stay two plates, as before
+    smap = SignMap(same_plate_radius=0.0)
+    smap.add(_s("OFFICE 303", 31.13, 16.46))
+    smap.add(_s("OFFICE 342", 31.17, 16.44, confidence=0.76))
+    assert len(smap) == 2
+    with pytest.raises(ValueError):
+        SignMap(merge_radius=1.0, same_plate_radius=1.2)
+
+
 def test_ties_go_to_the_nearer_frontal_view_and_position_favours_it():
     smap = SignMap()
     smap.add(_s("ADMIN", 10.0, 5.0, confidence=0.8, rng=4.0, view=math.radians(60)))

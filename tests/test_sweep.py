@@ -4,6 +4,7 @@ losing the others, a run past its timeout stopped with its outputs kept."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import os
 import signal
@@ -20,7 +21,7 @@ from blocks.core.loader import load_graph
 from blocks.core.scores import Score
 from blocks.sweep import SweepError, plan_tasks
 from blocks.sweep.results import flatten_metrics, run_row
-from blocks.sweep.summary import score_stats, summary_markdown
+from blocks.sweep.summary import is_yes_no, score_stats, summary_markdown
 from blocks.sweep.tasks import SweepConfig, SweepTask, save_manifest
 
 SEMMAP = Path(sys.executable).with_name("semmap")
@@ -193,6 +194,20 @@ def test_the_summary_has_a_table_per_kind_and_names_the_unfinished():
     assert "ring-2-s0 (0.2), ring-1-s0 (0.9)" in text
     assert "| hall-3-s0 | failed | bad \\| world |" in text
     assert "| ring-3-s0 | interrupted |" in text
+
+
+def test_a_flag_is_a_share_of_runs_and_a_count_of_zeros_and_ones_is_not():
+    """False signs were 0 or 1 in every run of a sweep, and the summary gave them as
+    '50% of runs'; only what run.json holds as a boolean is a yes/no score."""
+    task = SweepTask("ring-1-s0", 0, "gen:ring:1", "ring-1", "ring", 1)
+    rows = [run_row(dataclasses.replace(task, name=f"ring-{i}-s0"),
+                    {"status": "done", "metrics": {"signs": {"false_signs": i % 2},
+                                                   "loop": {"closed": bool(i % 2)}}})
+            for i in range(4)]
+    assert is_yes_no(rows, "loop.closed") and not is_yes_no(rows, "signs.false_signs")
+    text = summary_markdown(rows, [Score("false signs", "signs.false_signs", "lower"),
+                                   Score("loop closed", "loop.closed", "higher")], title="T")
+    assert "| ring | 4 | 0.5 · 1 · 1 | 50% of runs |" in text
 
 
 # ---- whole sweeps -------------------------------------------------------------------------------

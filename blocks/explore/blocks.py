@@ -321,6 +321,8 @@ class FrontierExploration(Block):
                                         "pressed as one bump"),
         "triangulate": Param(bool, False, "with 'monitored': the monitor locates near echoes "
                                           "by their closing rate (its 'triangulate')"),
+        "echo_memory": Param(float, 1.0, "with 'monitored': the seconds of echoes the monitor "
+                                         "remembers (its 'memory')", unit="s", min=0.0),
     }
     category = "explore"
 
@@ -349,7 +351,8 @@ class FrontierExploration(Block):
                                      wall_margin=self.p.wall_margin,
                                      retry_given_up=self.p.retry_given_up,
                                      monitor=(MonitorParams(min_range=spec.sonar.min_range,
-                                                            triangulate=self.p.triangulate)
+                                                            triangulate=self.p.triangulate,
+                                                            memory=self.p.echo_memory)
                                               if self.p.monitored else None),
                                      trail_time=(math.inf if self.p.trail_time < 0
                                                  else self.p.trail_time))

@@ -300,6 +300,8 @@ class RoomVisits(Block):
         "held_time": Param(float, 0.8, "see 'monitored'", unit="s", min=0.1),
         "triangulate": Param(bool, False, "with 'monitored': the monitor locates near echoes "
                                           "by their closing rate (its 'triangulate')"),
+        "echo_memory": Param(float, 1.0, "with 'monitored': the seconds of echoes the monitor "
+                                         "remembers (its 'memory')", unit="s", min=0.0),
     }
 
     def setup(self) -> None:
@@ -318,7 +320,8 @@ class RoomVisits(Block):
         self._guard = SonarGuard.for_robot(spec)
         # the monitor's echoes, so a leg creeps round what it would stop rather than wait
         self._monitor = MonitorParams(min_range=spec.sonar.min_range,
-                                      triangulate=self.p.triangulate) \
+                                      triangulate=self.p.triangulate,
+                                      memory=self.p.echo_memory) \
             if self.p.monitored else None
         self._cone, self._max_range = spec.sonar.cone_deg, spec.sonar.max_range
         self._pursuit = PursuitParams(cruise=min(self.p.cruise, spec.limits.max_speed),

@@ -367,6 +367,8 @@ class Correlate(Block):
         self.version += 1
         self.report("signs", len(signs))
         self.report("sightings", sum(s["sightings"] for s in signs))
+        # plates read confidently as different texts: one text won the vote
+        self.report("disputed", sum(c.disputed for c in self.signs.clusters))
         if self.ctx.out_dir is not None:
             from .correlate import write_signs_json
             write_signs_json(self.output_path("signs.json"), signs)

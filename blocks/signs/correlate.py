@@ -5,8 +5,11 @@ Each capture of a plate that the reader could make something of becomes a
 :mod:`blocks.signs.geometry`), and the robot pose it was taken from. A robot
 passing a plate sees it several times (and again on the next lap), so the
 :class:`SignMap` merges sightings of one plate: close together, facing the
-same way, and not disagreeing about a confidently read text. Each merged sign
-keeps its best reading and a position weighted towards its best views.
+same way, and not disagreeing about a confidently read text, or so close
+that they can only be one plate, whatever the reader made of it (two plates
+do not hang within a plate's width of each other). Each merged sign keeps the
+text most of its confident readings agree on, and a position weighted
+towards its best views.
 
 Because every sighting keeps the sign's pose *relative to the robot*, a map
 whose robot path is corrected afterwards (loop closure, scan matching) can
@@ -223,11 +226,39 @@ class SignCluster:
     x: float = 0.0
     y: float = 0.0
     facing: float = 0.0
+    confident: float = 0.5  # readings at least this confident outvote weaker ones
+
+    def votes(self) -> dict[str, float]:
+        """Each text read, with the summed confidence of the readings that say it.
+
+        Only the confident readings vote when there are any: three weak reads of a
+        shorter word do not outvote one clear read.
+        """
+        read = [s for s in self.sightings if s.text]
+        sure = [s for s in read if s.confidence >= self.confident] or read
+        votes: dict[str, float] = {}
+        for s in sure:
+            votes[s.text] = votes.get(s.text, 0.0) + float(s.confidence)
+        return votes
+
+    @property
+    def disputed(self) -> bool:
+        """Whether confident readings of this plate say different things."""
+        return len({s.text for s in self.sightings
+                    if s.text and s.confidence >= self.confident}) > 1
 
     @property
     def best(self) -> Sighting:
-        """The reading kept: highest confidence, ties to the nearer, more frontal view."""
-        return max(self.sightings, key=Sighting.quality)
+        """The reading kept: of the text the most confidence supports (:meth:`votes`), the
+        most confident reading, ties to the nearer, more frontal view.
+
+        One misread digit ("OFFICE 182" for 102) must not name the plate when
+        the other reads agree.
+        """
+        votes = self.votes()
+        if len(votes) <= 1:
+            return max(self.sightings, key=Sighting.quality)
+        return max(self.sightings, key=lambda s: (votes.get(s.text, -1.0), s.quality()))
 
     def add(self, s: Sighting) -> None:
         self.sightings.append(s)
@@ -269,12 +300,25 @@ class SignMap:
     conflict_confidence : float
         Texts read at least this confidently must agree for a merge; a
         weaker reading (or an empty text) agrees with anything.
+    same_plate_radius : float
+        ...except within this distance (m), facing the same way, where two
+        readings can only be of one plate: two plates do not hang within a
+        plate's width of each other (on 150 generated floors, plates facing
+        the same way are at least 1.09 m apart), and a reader that read a
+        plate as "OFFICE 102" eight times and "OFFICE 182" once has read one
+        plate, not two.  The plate's text is then put to the vote
+        (:meth:`SignCluster.votes`).  0: confident readings that disagree
+        never merge.
     """
 
     def __init__(self, merge_radius: float = 1.0, merge_facing_deg: float = 60.0,
-                 text_merge_radius: float = 1.5, conflict_confidence: float = 0.5) -> None:
+                 text_merge_radius: float = 1.5, conflict_confidence: float = 0.5,
+                 same_plate_radius: float = 0.5) -> None:
         if merge_radius <= 0 or text_merge_radius < merge_radius:
             raise ValueError("need 0 < merge_radius <= text_merge_radius")
+        if not 0 <= same_plate_radius <= merge_radius:
+            raise ValueError("need 0 <= same_plate_radius <= merge_radius")
+        self.same_plate_radius = float(same_plate_radius)
         self.merge_radius = float(merge_radius)
         self.merge_facing = math.radians(merge_facing_deg)
         self.text_merge_radius = float(text_merge_radius)
@@ -302,7 +346,7 @@ class SignMap:
             if d >= best_d or abs(wrap(s.facing - c.facing)) >= self.merge_facing:
                 continue
             other = self._confident_text(c.best)
-            if text and other and text != other:
+            if text and other and text != other and d > self.same_plate_radius:
                 continue
             radius = self.text_merge_radius if text and text == other else self.merge_radius
             if d <= radius:
@@ -312,7 +356,7 @@ class SignMap:
     def _place(self, s: Sighting) -> int:
         i = self._match(s)
         if i is None:
-            self.clusters.append(SignCluster())
+            self.clusters.append(SignCluster(confident=self.conflict_confidence))
             i = len(self.clusters) - 1
         self.clusters[i].add(s)
         return i

@@ -20,18 +20,26 @@ from blocks.core.atomic import atomic_write_text
 
 from .tasks import SweepTask, run_dir
 
-__all__ = ["FIXED_COLUMNS", "flatten_metrics", "read_rows", "run_row", "write_results"]
+__all__ = ["FIXED_COLUMNS", "Flag", "flatten_metrics", "read_rows", "run_row", "write_results"]
 
 FIXED_COLUMNS = ("run", "world", "kind", "world_seed", "seed", "status", "error",
                  "wall_time_s", "task_time_s", "x_real_time", "sim_time_s", "ticks")
 RESULTS = "results.csv"
 
 
+class Flag(int):
+    """A yes/no metric flattened to 1 or 0, still known for one.
+
+    Why: the summary gives a flag's mean as a share of runs, and a count that
+    happens to be 0 or 1 in every run (false signs) is not a flag.
+    """
+
+
 def flatten_metrics(metrics: dict[str, Any], prefix: str = "") -> dict[str, float | int]:
     """The scalar numbers of a nested metrics dict, keyed by their dotted path.
 
     Lists and strings are left out (per-room tables, messages); booleans
-    become 1 and 0; NaN and None are left out.
+    become 1 and 0 (as :class:`Flag`); NaN and None are left out.
 
     Examples
     --------
@@ -45,7 +53,7 @@ def flatten_metrics(metrics: dict[str, Any], prefix: str = "") -> dict[str, floa
         if isinstance(value, dict):
             flat.update(flatten_metrics(value, name + "."))
         elif isinstance(value, bool):
-            flat[name] = int(value)
+            flat[name] = Flag(value)
         elif isinstance(value, (int, float)) and not (isinstance(value, float)
                                                       and math.isnan(value)):
             flat[name] = value

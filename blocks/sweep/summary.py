@@ -22,6 +22,8 @@ from blocks.core.atomic import atomic_write_figure, atomic_write_text
 from blocks.core.scores import Score
 from blocks.core.session import FINISHED
 
+from .results import Flag
+
 __all__ = ["Stats", "draw_summary", "is_yes_no", "score_stats", "summary_markdown", "write_summary"]
 
 WORST_SHOWN = 3  # worst runs named per score
@@ -80,9 +82,12 @@ def score_stats(rows: Iterable[dict[str, Any]], score: Score, *,
 
 
 def is_yes_no(rows: Iterable[dict[str, Any]], metric: str) -> bool:
-    """Whether every value of ``metric`` is 0 or 1 (a flag: its mean is a share of runs)."""
-    values = [float(r[metric]) for r in rows if _is_number(r.get(metric))]
-    return bool(values) and all(v in (0.0, 1.0) for v in values)
+    """Whether ``metric`` is a flag (a boolean in run.json): its mean is a share of runs.
+
+    A count that is 0 or 1 in every run is still a count.
+    """
+    values = [r[metric] for r in rows if _is_number(r.get(metric))]
+    return bool(values) and all(isinstance(v, Flag) for v in values)
 
 
 def _is_number(value: Any) -> bool:
