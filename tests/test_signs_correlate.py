@@ -375,8 +375,8 @@ def test_a_weak_wrong_reading_does_not_replace_a_good_one():
 
 def test_a_misread_of_a_plate_is_the_same_plate_and_loses_the_vote():
     """Readings of one plate closer than a plate's width are one plate whatever they say
-    (run gen:office:5: "OFFICE 182" beside eight reads of "OFFICE 102"); the text most
-    confident readings agree on names it."""
+    (run gen:office:5: "OFFICE 182" read once beside eight reads of "OFFICE 102"); the
+    text most confident readings agree on names it."""
     smap = SignMap()
     for i in range(3):
         smap.add(_s("OFFICE 102", 10.44 + 0.02 * i, 5.14, confidence=0.98))
@@ -392,6 +392,43 @@ def test_a_misread_of_a_plate_is_the_same_plate_and_loses_the_vote():
         smap.add(_s("MEETING ROOM 1" if order[0] < 0.95 else "MEETING ROOM", 5.14, 5.15,
                     confidence=order[1]))
         assert [s["text"] for s in smap.signs()] == ["MEETING ROOM 1"]
+
+
+def test_two_agreeing_reads_outvote_one_more_confident_misread_in_any_order():
+    """The vote sums confidence per text: 0.8 + 0.8 for "OFFICE 102" beats a single 0.9
+    "OFFICE 182"; and the plate is one plate whichever reading came first, even when the
+    misread led the vote for a while (the later "OFFICE 102" 0.9 m from the first)."""
+    reads = [_s("OFFICE 102", 0.0, 5.0, confidence=0.8),
+             _s("OFFICE 182", 0.4, 5.0, confidence=0.9),
+             _s("OFFICE 102", 0.9, 5.0, confidence=0.8)]
+    for order in ((0, 1, 2), (1, 0, 2), (0, 2, 1), (2, 1, 0)):
+        smap = SignMap()
+        for i in order:
+            smap.add(dataclasses.replace(reads[i]))
+        assert [(s["text"], s["sightings"]) for s in smap.signs()] == [("OFFICE 102", 3)], order
+
+
+def test_a_misread_joins_its_own_plate_not_the_neighbour_it_happens_to_be_nearer():
+    """Plates "LAB 1" and "LAB 2" 1.1 m apart: a reading of "LAB 2" that landed nearer to
+    "LAB 1" joins "LAB 2" (its text agrees, within the text radius), and "LAB 1" stays."""
+    smap = SignMap()
+    smap.add(_s("LAB 1", 0.0, 5.0))
+    smap.add(_s("LAB 2", 1.1, 5.0))
+    smap.add(_s("LAB 2", 0.45, 5.0, confidence=0.95))
+    assert [(s["text"], s["sightings"]) for s in smap.signs()] == [("LAB 1", 1), ("LAB 2", 2)]
+
+
+def test_a_plate_read_once_clearly_is_read_whatever_the_vote_says():
+    """"LIB" twice at 0.55 outvotes "LAB" at 0.9, and the plate is still read (a reading
+    of it clears min_confidence), not dropped for its winner's weaker reads."""
+    smap = SignMap()
+    smap.add(_s("LAB", 5.0, 7.0, confidence=0.9))
+    smap.add(_s("LIB", 5.05, 7.0, confidence=0.55))
+    smap.add(_s("LIB", 5.1, 7.0, confidence=0.55))
+    assert [s["text"] for s in smap.signs(min_confidence=0.6)] == ["LIB"]
+    assert smap.rejected(min_confidence=0.6) == []
+    smap.add(_s("", 5.0, 7.0, confidence=0.99))  # seen, not read: never names the plate
+    assert [s["text"] for s in smap.signs(min_confidence=0.6)] == ["LIB"]
 
 
 def test_weak_reads_do_not_outvote_a_clear_one_and_plates_a_width_apart_stay_apart():
@@ -411,8 +448,12 @@ def test_weak_reads_do_not_outvote_a_clear_one_and_plates_a_width_apart_stay_apa
     smap.add(_s("OFFICE 303", 31.13, 16.46))
     smap.add(_s("OFFICE 342", 31.17, 16.44, confidence=0.76))
     assert len(smap) == 2
+    smap = SignMap(same_plate_radius=0.0)  # ...even at one spot
+    smap.add(_s("OFFICE 303", 31.13, 16.46))
+    smap.add(_s("OFFICE 342", 31.13, 16.46, confidence=0.76))
+    assert len(smap) == 2
     with pytest.raises(ValueError):
-        SignMap(merge_radius=1.0, same_plate_radius=1.2)
+        SignMap(same_plate_radius=-0.1)
 
 
 def test_ties_go_to_the_nearer_frontal_view_and_position_favours_it():

@@ -226,7 +226,7 @@ class SignCluster:
     x: float = 0.0
     y: float = 0.0
     facing: float = 0.0
-    confident: float = 0.5  # readings at least this confident outvote weaker ones
+    confident: float = 0.5  # readings this confident outvote weaker ones (the map's conflict_confidence)
 
     def votes(self) -> dict[str, float]:
         """Each text read, with the summed confidence of the readings that say it.
@@ -255,9 +255,7 @@ class SignCluster:
         One misread digit ("OFFICE 182" for 102) must not name the plate when
         the other reads agree.
         """
-        votes = self.votes()
-        if len(votes) <= 1:
-            return max(self.sightings, key=Sighting.quality)
+        votes = self.votes()  # a reading with no text, or outvoted, ranks last
         return max(self.sightings, key=lambda s: (votes.get(s.text, -1.0), s.quality()))
 
     def add(self, s: Sighting) -> None:
@@ -308,7 +306,7 @@ class SignMap:
         plate as "OFFICE 102" eight times and "OFFICE 182" once has read one
         plate, not two.  The plate's text is then put to the vote
         (:meth:`SignCluster.votes`).  0: confident readings that disagree
-        never merge.
+        never merge (weak readings are still put to the vote).
     """
 
     def __init__(self, merge_radius: float = 1.0, merge_facing_deg: float = 60.0,
@@ -316,8 +314,8 @@ class SignMap:
                  same_plate_radius: float = 0.5) -> None:
         if merge_radius <= 0 or text_merge_radius < merge_radius:
             raise ValueError("need 0 < merge_radius <= text_merge_radius")
-        if not 0 <= same_plate_radius <= merge_radius:
-            raise ValueError("need 0 <= same_plate_radius <= merge_radius")
+        if same_plate_radius < 0:
+            raise ValueError("need same_plate_radius >= 0")
         self.same_plate_radius = float(same_plate_radius)
         self.merge_radius = float(merge_radius)
         self.merge_facing = math.radians(merge_facing_deg)
@@ -338,20 +336,29 @@ class SignMap:
         return s.text if s.confidence >= self.conflict_confidence else ""
 
     def _match(self, s: Sighting) -> int | None:
-        """Index of the cluster ``s`` belongs to (the nearest compatible), or None."""
-        best, best_d = None, math.inf
+        """Index of the cluster ``s`` belongs to, or None.
+
+        The nearest cluster whose confident texts include the reading's (or
+        where one side has none); failing that, the nearest within
+        ``same_plate_radius`` that read something else: a misread joins its
+        plate, never a neighbour that read it right.
+        """
         text = self._confident_text(s)
+        agreeing: tuple[float, int | None] = (math.inf, None)
+        same_plate: tuple[float, int | None] = (math.inf, None)
         for i, c in enumerate(self.clusters):
             d = math.hypot(s.x - c.x, s.y - c.y)
-            if d >= best_d or abs(wrap(s.facing - c.facing)) >= self.merge_facing:
+            if abs(wrap(s.facing - c.facing)) >= self.merge_facing:
                 continue
-            other = self._confident_text(c.best)
-            if text and other and text != other and d > self.same_plate_radius:
+            others = {t for t in map(self._confident_text, c.sightings) if t}
+            if text and others and text not in others:
+                if self.same_plate_radius > 0 and d <= self.same_plate_radius:
+                    same_plate = min(same_plate, (d, i))
                 continue
-            radius = self.text_merge_radius if text and text == other else self.merge_radius
+            radius = self.text_merge_radius if text and text in others else self.merge_radius
             if d <= radius:
-                best, best_d = i, d
-        return best
+                agreeing = min(agreeing, (d, i))
+        return agreeing[1] if agreeing[1] is not None else same_plate[1]
 
     def _place(self, s: Sighting) -> int:
         i = self._match(s)
@@ -454,14 +461,16 @@ class SignMap:
         return placed
 
     def _is_read(self, c: SignCluster, min_confidence: float) -> bool:
-        best = c.best
-        return bool(best.text) and best.confidence >= min_confidence
+        """Read: some reading with a text is at least ``min_confidence``; the vote names it."""
+        return bool(c.best.text) and max(
+            (s.confidence for s in c.sightings if s.text), default=0.0) >= min_confidence
 
     def signs(self, min_confidence: float = 0.5) -> list[dict[str, Any]]:
         """The read signs: ``{text, raw_text, confidence, x, y, facing (deg), sightings}``.
 
-        Only signs whose best reading has a (vocabulary-matched) text and at
-        least ``min_confidence``; sorted by text, then x, then y.
+        Only plates one of whose readings has a (vocabulary-matched) text and
+        at least ``min_confidence``, named by the vote
+        (:attr:`SignCluster.best`); sorted by text, then x, then y.
         """
         out = [c.as_dict() for c in self.clusters if self._is_read(c, min_confidence)]
         return sorted(out, key=lambda d: (d["text"], d["x"], d["y"]))
@@ -473,8 +482,9 @@ class SignMap:
             if self._is_read(c, min_confidence):
                 continue
             d = c.as_dict()
+            top = max((s.confidence for s in c.sightings if s.text), default=0.0)
             d["reason"] = "no text" if not c.best.text else \
-                f"confidence {c.best.confidence:.2f} < {min_confidence:.2f}"
+                f"confidence {top:.2f} < {min_confidence:.2f}"
             d["raw_texts"] = [s.raw_text for s in c.sightings]
             out.append(d)
         return sorted(out, key=lambda d: (d["x"], d["y"]))

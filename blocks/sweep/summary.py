@@ -59,7 +59,8 @@ class Stats:
 
 def score_stats(rows: Iterable[dict[str, Any]], score: Score, *,
                 worst: int = WORST_SHOWN) -> Stats:
-    """The distribution of ``score.metric`` over ``rows`` (results.csv rows).
+    """The distribution of ``score.metric`` over ``rows``, as :func:`~.results.run_row`
+    builds them from run.json (read back from results.csv, a flag is a plain number).
 
     Examples
     --------
