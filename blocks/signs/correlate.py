@@ -241,11 +241,19 @@ class SignCluster:
             votes[s.text] = votes.get(s.text, 0.0) + float(s.confidence)
         return votes
 
+    def confident_texts(self) -> set[str]:
+        """The texts this plate's confident readings say."""
+        return {s.text for s in self.sightings if s.text and s.confidence >= self.confident}
+
     @property
     def disputed(self) -> bool:
         """Whether confident readings of this plate say different things."""
-        return len({s.text for s in self.sightings
-                    if s.text and s.confidence >= self.confident}) > 1
+        return len(self.confident_texts()) > 1
+
+    @property
+    def top_confidence(self) -> float:
+        """The confidence of its most confident reading with a text (0 if none)."""
+        return max((s.confidence for s in self.sightings if s.text), default=0.0)
 
     @property
     def best(self) -> Sighting:
@@ -350,7 +358,7 @@ class SignMap:
             d = math.hypot(s.x - c.x, s.y - c.y)
             if abs(wrap(s.facing - c.facing)) >= self.merge_facing:
                 continue
-            others = {t for t in map(self._confident_text, c.sightings) if t}
+            others = c.confident_texts()
             if text and others and text not in others:
                 if self.same_plate_radius > 0 and d <= self.same_plate_radius:
                     same_plate = min(same_plate, (d, i))
@@ -462,8 +470,7 @@ class SignMap:
 
     def _is_read(self, c: SignCluster, min_confidence: float) -> bool:
         """Read: some reading with a text is at least ``min_confidence``; the vote names it."""
-        return bool(c.best.text) and max(
-            (s.confidence for s in c.sightings if s.text), default=0.0) >= min_confidence
+        return bool(c.best.text) and c.top_confidence >= min_confidence
 
     def signs(self, min_confidence: float = 0.5) -> list[dict[str, Any]]:
         """The read signs: ``{text, raw_text, confidence, x, y, facing (deg), sightings}``.
@@ -482,9 +489,8 @@ class SignMap:
             if self._is_read(c, min_confidence):
                 continue
             d = c.as_dict()
-            top = max((s.confidence for s in c.sightings if s.text), default=0.0)
             d["reason"] = "no text" if not c.best.text else \
-                f"confidence {top:.2f} < {min_confidence:.2f}"
+                f"confidence {c.top_confidence:.2f} < {min_confidence:.2f}"
             d["raw_texts"] = [s.raw_text for s in c.sightings]
             out.append(d)
         return sorted(out, key=lambda d: (d["x"], d["y"]))
