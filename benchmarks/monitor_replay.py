@@ -91,10 +91,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"no recorded runs (runs/*/sonar.npz) under {', '.join(map(str, args.sweeps))}",
               file=sys.stderr)
         return 2
-    rules = {"arcs (the monitor's default: 1 s of echoes)": MonitorParams(),
-             "arcs + triangulated echoes": replace(MonitorParams(), triangulate=True),
-             "arcs, 3 s of echoes": replace(MonitorParams(), memory=3.0),
-             "arcs, 6 s of echoes": replace(MonitorParams(), memory=6.0)}
+    alone = replace(MonitorParams(), near_memory=0.0)  # every echo kept as long
+    rules = {"arcs, 1 s of echoes, near ones 30 s (the monitor's default)": MonitorParams(),
+             "arcs, 1 s of echoes": alone,
+             "arcs + triangulated echoes, 1 s": replace(alone, triangulate=True),
+             "arcs, 3 s of echoes": replace(alone, memory=3.0),
+             "arcs, 6 s of echoes": replace(alone, memory=6.0)}
     print(f"{len(runs)} runs")
     print("| rule | contacts foreseen | stopped elsewhere |")
     print("| --- | --- | --- |")

@@ -78,7 +78,7 @@ def test_a_command_towards_an_echo_is_scaled_along_its_own_path_and_stopped_at_t
 
 
 def test_an_echo_heard_once_is_carried_along_by_odometry_and_forgotten_after_the_memory():
-    monitor = CollisionMonitor(guard(), MonitorParams(memory=1.0))
+    monitor = CollisionMonitor(guard(), MonitorParams(memory=1.0, near_memory=0.0))
     monitor.step(0.0, np.zeros(3), reading(Fr1=0.3, Fr2=0.3), 0.0, 0.0)
     # the next scans hear nothing (a corner at grazing incidence); the robot has come 0.15 m
     pose = np.array([0.15, 0.0, 0.0])
@@ -86,6 +86,47 @@ def test_an_echo_heard_once_is_carried_along_by_odometry_and_forgotten_after_the
     assert monitor.scale < 1.0 and v < 0.4
     v, _ = monitor.step(1.05, pose, reading(), 0.4, 0.0)
     assert v == 0.4
+
+
+def test_near_echoes_are_kept_for_the_near_memory_far_and_touching_ones_for_the_memory():
+    echoes = EchoMemory(guard(), MonitorParams(memory=1.0, near_range=0.6, near_memory=30.0))
+    echoes.add(0.0, np.zeros(3), reading(Fr1=0.3, Lt1=1.5, Rt1=0.1))
+    assert len(echoes.arcs(np.zeros(3))) == 3
+    for k in range(1, 200):  # 20 s on, the robot 0.2 m further on, hearing nothing
+        echoes.add(0.1 * k, np.array([0.001 * k, 0.0, 0.0]), reading())
+    kept = echoes.arcs(np.array([0.2, 0.0, 0.0]))
+    assert len(kept) == 1  # the near echo ahead, not the far one nor the touch
+    # carried by odometry: 0.25 + 0.3 ahead of the centre then, 0.2 m nearer now
+    assert math.isclose(kept[0, 1, 0], 0.35, abs_tol=0.01)
+    for k in range(200, 320):
+        echoes.add(0.1 * k, np.array([0.2, 0.0, 0.0]), reading())
+    assert len(echoes.arcs(np.array([0.2, 0.0, 0.0]))) == 0  # past the near memory
+
+
+def backing_flush_against_a_wall(near_memory: float) -> float:
+    """A robot drove along a wall 0.2 m off its right side, then turned 17 degrees left
+    with its right side to it; its right sonars now read their least range (the wall is
+    within 0.1 m, at an angle they cannot tell) and it is asked to back for 3 s, which
+    brings its rear-right corner in.  How far the corner stays off the wall (m; < 0: in)."""
+    monitor = CollisionMonitor(guard(), MonitorParams(memory=1.0, near_memory=near_memory))
+    along = reading(Rt1=0.2, Rt2=0.2, RtFr2=0.213, RtFr1=0.244, FrRt2=0.31, BkRt=0.31)
+    for k in range(20):  # the wall is the line y = -0.45
+        monitor.step(0.1 * k, np.array([0.05 * k, 0.0, 0.0]), along, 0.5, 0.0)
+    touching = reading(Rt1=0.1, Rt2=0.1, RtFr2=0.1, RtFr1=0.1, BkRt=0.1)
+    x, y, th = 1.2, -0.10, 0.3  # the rear-right corner 0.04 m off the wall
+    gap = math.inf
+    for k in range(30, 60):
+        v, w = monitor.step(0.1 * k, np.array([x, y, th]), touching, -0.15, 0.0)
+        x, y, th = x + 0.1 * v * math.cos(th), y + 0.1 * v * math.sin(th), th + 0.1 * w
+        corner_y = y - 0.25 * math.sin(th) - 0.25 * math.cos(th)
+        gap = min(gap, corner_y + 0.45)
+    return gap
+
+
+def test_backing_into_a_wall_heard_before_it_came_flush_stops_short_of_it():
+    assert backing_flush_against_a_wall(near_memory=30.0) > 0.0
+    # with only the last second's echoes, the least-range readings say nothing of the angle
+    assert backing_flush_against_a_wall(near_memory=0.0) < 0.0
 
 
 def test_held_still_with_every_asked_motion_refused_it_backs_or_turns_the_clear_way():
@@ -207,3 +248,20 @@ def test_the_replay_counts_contacts_seen_coming_and_stops_where_nothing_was_hit(
     counts = replay_run(tmp_path / "open", MonitorParams())
     assert counts["foreseen"] == counts["missed"] == 0
     assert counts["stopped"] == 5 and counts["moving"] == 10  # ticks 45, 52, ... 73 of 10..73
+
+
+def test_contacts_are_named_by_the_part_of_the_body_and_the_motion(tmp_path):
+    from contacts import contacts
+    # driving ahead along +x, then backing: touched at the front-right, then the rear-left
+    run = tmp_path / "runs" / "hall-1-s0"
+    run.mkdir(parents=True)
+    rows = "".join(f"{k},{k * 0.1:.1f},robot,{0.04 * k:.3f},0,0,0,0,0,"
+                   f"{0.4 if k < 30 else -0.15},0\n" for k in range(60))
+    (run / "trajectory.csv").write_text(
+        "tick,time,robot,x,y,theta,odom_x,odom_y,odom_theta,v,w\n" + rows)
+    log = [{"t": 2.0, "contact": [0.8 + 0.25, -0.25]},  # the robot at x = 0.8, then 2.0
+           {"t": 5.0, "contact": [2.0 - 0.25, 0.24]}]
+    (run / "run.json").write_text(json.dumps({"metrics": {"world": {"collision_log": log}}}))
+    found = contacts(run)
+    assert [(c["part"], c["motion"]) for c in found] == [("front-right", "ahead"),
+                                                         ("rear-left", "backing")]

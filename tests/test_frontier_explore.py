@@ -125,13 +125,38 @@ def test_it_drives_to_the_opening_and_ends_explored_when_the_frontier_is_seen():
 def test_a_way_blocked_ahead_again_and_again_ends_stuck():
     # Every way is blocked at once: the robot gets nowhere.
     explorer = FrontierExplorer(lambda: room_map(), GUARD,
-                                ExploreParams(max_failures=3, max_attempts=5,
+                                ExploreParams(max_failures=3, max_attempts=5, hand_backs=0,
                                               back_off_time=0.3, bump_memory=0.0))
     robot = PointRobot(2.0, 3.0)
     assert run(explorer, robot, 600, ranges=np.array([0.2, 4.0])) is not None
     r = explorer.result
     assert r.end_reason == "stuck" and r.blocked_ahead == 3 and r.goals_given_up == 0
     assert r.log[1]["failed"] == "blocked ahead"
+
+
+def test_stuck_it_hands_back_to_the_follower_and_plans_again_from_where_that_took_it():
+    explorer = FrontierExplorer(lambda: room_map(), GUARD,
+                                ExploreParams(max_failures=3, max_attempts=50, hand_backs=1,
+                                              hand_back_distance=2.0, back_off_time=0.3,
+                                              bump_memory=0.0))
+    robot = PointRobot(2.0, 3.0)
+    followed, blocked = 0.0, np.array([0.2, 4.0])
+    for tick in range(1200):
+        out = explorer.step(0.1 * tick, robot.pose, blocked, follower_done=True,
+                            follower_v=0.3, follower_w=0.1)
+        if explorer.ended:
+            break
+        if out is None:  # the follower drives (its loop long closed: that does not count)
+            robot.move(0.3, 0.1)
+            followed += 0.03
+        else:
+            robot.move(*out)
+    r = explorer.result
+    assert r.hand_backs == 1 and r.end_reason == "stuck"
+    assert 2.0 <= followed <= 2.2  # the hand-back's distance, then planning again
+    assert [e["hand back"] for e in r.log if "hand back" in e] == ["stuck"]
+    assert [e["take over"] for e in r.log if "take over" in e] == ["handed back"]
+    assert r.start_reason == "loop closed" and r.blocked_ahead == 6
 
 
 def test_ways_that_fail_here_and_there_while_the_robot_gets_about_are_not_stuck():
@@ -645,8 +670,7 @@ def test_a_robot_pinned_by_its_side_backs_along_the_wall_until_it_can_turn(monit
         return r
 
     params = ExploreParams(monitor=MonitorParams() if monitored else None, max_failures=3,
-                           max_attempts=10,
-                           bump_memory=0.0)
+                           max_attempts=10, hand_backs=0, bump_memory=0.0)
     explorer = FrontierExplorer(lambda: room_map(), guard, params)
     robot = PointRobot(2.0, 3.0)
     least_x = robot.pose[0]
@@ -699,7 +723,7 @@ def test_a_robot_boxed_in_creeps_the_way_the_monitor_lets_it_instead_of_ending_s
         return r
 
     params = ExploreParams(monitor=MonitorParams() if monitored else None, max_failures=6,
-                           max_attempts=10, bump_memory=0.0)
+                           max_attempts=10, hand_backs=0, bump_memory=0.0)
     explorer = FrontierExplorer(lambda: room_map(), guard, params)
     robot = PointRobot(*start)
     for tick in range(400):

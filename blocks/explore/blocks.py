@@ -239,8 +239,10 @@ class FrontierExploration(Block):
     not see (a stall), makes it back off and plan again, with what it touched
     on the map; while the follower drives, it backs the follower off, turns it
     away from the wall and hands back, or takes over for good once the
-    follower keeps getting caught.  ``done`` fires then; run.json gets why it
-    ended (``explored``, ``stuck`` or ``time budget``) and what it did.  With
+    follower keeps getting caught.  Stuck (its ways failing one after another
+    at one place), it hands back to the follower for a few metres and plans
+    again from there.  ``done`` fires when it ends; run.json gets why
+    (``explored``, ``stuck`` or ``time budget``) and what it did.  With
     ``enabled`` false it passes the follower through, ``done`` included: the
     paper's perimeter-only exploration.  See :mod:`blocks.explore.explorer`.
     """
@@ -306,7 +308,12 @@ class FrontierExploration(Block):
         "stall_time": Param(float, 12.0, "a way with no progress this long fails", unit="s",
                             min=1.0),
         "max_failures": Param(int, 8, "this many failed ways in a row, all within 2 m of the "
-                                      "first, end it 'stuck'", min=1),
+                                      "first, and the robot is stuck", min=1),
+        "hand_backs": Param(int, 3, "stuck, hand back to the follower for hand_back_distance "
+                                    "and plan again from there, at most this often; stuck "
+                                    "once more ends it 'stuck' (0: at once)", min=0),
+        "hand_back_distance": Param(float, 8.0, "how far the follower drives after a hand-back",
+                                    unit="m", min=0.0),
         "stale_distance": Param(float, 40.0, "take over once the follower drove this far "
                                              "without new floor (0: only after its loop)",
                                 unit="m", min=0.0),
@@ -323,6 +330,9 @@ class FrontierExploration(Block):
                                           "by their closing rate (its 'triangulate')"),
         "echo_memory": Param(float, 1.0, "with 'monitored': the seconds of echoes the monitor "
                                          "remembers (its 'memory')", unit="s", min=0.0),
+        "near_echo_memory": Param(float, 30.0, "with 'monitored': the seconds the monitor "
+                                               "keeps echoes nearer than 0.6 m (its "
+                                               "'near_memory')", unit="s", min=0.0),
     }
     category = "explore"
 
@@ -346,13 +356,16 @@ class FrontierExploration(Block):
                                      reach=self.p.reach, gain_weight=self.p.gain_weight,
                                      stall_time=self.p.stall_time,
                                      max_failures=self.p.max_failures,
+                                     hand_backs=self.p.hand_backs,
+                                     hand_back_distance=self.p.hand_back_distance,
                                      stale_distance=self.p.stale_distance,
                                      stale_gain=self.p.stale_gain,
                                      wall_margin=self.p.wall_margin,
                                      retry_given_up=self.p.retry_given_up,
                                      monitor=(MonitorParams(min_range=spec.sonar.min_range,
                                                             triangulate=self.p.triangulate,
-                                                            memory=self.p.echo_memory)
+                                                            memory=self.p.echo_memory,
+                                                            near_memory=self.p.near_echo_memory)
                                               if self.p.monitored else None),
                                      trail_time=(math.inf if self.p.trail_time < 0
                                                  else self.p.trail_time))

@@ -168,9 +168,17 @@ class ExploreParams:
         Goals this close (m) to one reached or given up count as the same goal.
     max_failures, stuck_radius
         This many failed ways in a row, with no goal reached between and all
-        within ``stuck_radius`` (m) of where the first of them failed, end it
-        ``stuck``: ways that fail here and there while the robot covers
-        ground are not a robot that cannot get anywhere.
+        within ``stuck_radius`` (m) of where the first of them failed, and
+        the robot is stuck: ways that fail here and there while the robot
+        covers ground are not a robot that cannot get anywhere.
+    hand_backs, hand_back_distance
+        Stuck, the robot hands back to the follower for ``hand_back_distance``
+        (m) of driving, then plans again from wherever that took it.  The
+        follower's rules need no map, and a robot stuck by its map (a doorway
+        drawn 0.2 m from where the drifted pose now puts it, a way planned
+        through a jamb the sonar then stops it at) is not stuck for them;
+        the map meanwhile is drawn again from there.  The ``hand_backs``-th
+        time after that (0: the first time) ends the exploration ``stuck``.
     jam_failures, jam_radius, retrace_distance, max_retraces
         So many failed ways in a row within ``jam_radius`` (m) of each other
         are a jam (wedged in a doorway, against a wall end): backing off a
@@ -210,6 +218,8 @@ class ExploreParams:
     forget_radius: float = 0.7
     max_failures: int = 8
     stuck_radius: float = 2.0
+    hand_backs: int = 3
+    hand_back_distance: float = 8.0
     jam_failures: int = 3
     jam_radius: float = 0.5
     retrace_distance: float = 1.5
@@ -253,6 +263,7 @@ class ExploreResult:
     blocked_ahead: int = 0
     doorways: int = 0
     retraces: int = 0
+    hand_backs: int = 0
     bumps: int = 0
     stalls: int = 0
     holds: int = 0
@@ -351,6 +362,7 @@ class FrontierExplorer:
         self._escape_until = self._turn_until = 0.0
         self._escape_speed = self._escape_turn = 0.0
         self._after_escape = "plan"
+        self._follow_until: float | None = None  # handed back: driven this far, take over
 
     # ---- the machine ---------------------------------------------------------------------
     @property
@@ -403,9 +415,14 @@ class FrontierExplorer:
             return self._escape(time, pose, ranges, bumpers)
         trouble = "" if hold or preempted else self._trouble(time, pose, ranges, bumpers)
         if self.phase == "follow":
+            handed_back = self._follow_until is not None
             if trouble:
-                return self._follower_trouble_at(time, pose, trouble, follower_done)
-            reason = "loop closed" if follower_done else self._stale(time)
+                return self._follower_trouble_at(time, pose, trouble,
+                                                 follower_done and not handed_back)
+            if handed_back:
+                reason = "handed back" if self._driven >= self._follow_until else ""
+            else:
+                reason = "loop closed" if follower_done else self._stale(time)
             if not reason:
                 return None
             self._take_over(time, reason)
@@ -418,8 +435,8 @@ class FrontierExplorer:
         if trouble and self.phase == "retrace":
             return self._start_escape(time, "plan")
         if trouble and self.phase in ("drive", "align"):
-            self._failed(time, trouble)
-            return self._start_escape(time, "plan") if self.phase != "ended" else None
+            self._failed(time, trouble)  # then planning again, or handed back, or ended
+            return self._start_escape(time, self.phase) if self.phase != "ended" else None
         if self.phase == "back_off":
             return self._back_off(time, ranges, bumpers)
         if self.phase == "unpin":
@@ -438,6 +455,11 @@ class FrontierExplorer:
 
     def _take_over(self, time: float, reason: str) -> None:
         self.phase = "plan"
+        if self._follow_until is not None:  # back from a hand-back: started long ago
+            self._follow_until = None
+            self.result.log.append({"t": round(time, 1), "take over": reason,
+                                    "at": [round(float(v), 2) for v in self._last[:2]]})
+            return
         self.result.started, self.result.start_reason = time, reason
 
     # ---- contact and stalls ---------------------------------------------------------------
@@ -842,7 +864,7 @@ class FrontierExplorer:
             self.result.blocked_ahead += 1
             self._remember_blocked(pose, ranges, v)
             self._failed(time, f"blocked {why}")
-            if self.phase != "ended":  # room to plan round the echo
+            if self.phase == "plan":  # room to plan round the echo
                 self.phase, self._back_until = "back_off", time + self.p.back_off_time
             return 0.0, 0.0
         if leg.progress > self._best + 0.05 or status == "turning":
@@ -851,7 +873,6 @@ class FrontierExplorer:
                 self._refused = 0  # it got going
         if time - self._progress_time > self.p.stall_time:
             self._failed(time, "no progress")
-            self.phase = "plan"
             return 0.0, 0.0
         if time >= self._next_look:
             self._next_look = time + self.p.replan_every
@@ -1002,9 +1023,24 @@ class FrontierExplorer:
             self._failures, self._streak = 1, []  # it got somewhere since: a new count
         self._streak.append(here)
         if self._failures >= self.p.max_failures:
-            self._end(time, "stuck")
+            if self.result.hand_backs < self.p.hand_backs:
+                self._hand_back(time)
+            else:
+                self._end(time, "stuck")
         elif self._jammed():
             self._retrace_pending = True
+
+    def _hand_back(self, time: float) -> None:
+        """Stuck here: let the follower drive ``hand_back_distance`` before planning again."""
+        self.result.hand_backs += 1
+        self.result.log.append({"t": round(time, 1), "hand back": "stuck",
+                                "at": [round(float(v), 2) for v in self._last[:2]]})
+        self._abandon("follow")
+        self._follow_until = self._driven + self.p.hand_back_distance
+        self._failures = self._retraces = self._refused = 0
+        self._retrace_pending = False
+        self._streak.clear()
+        self._commands.clear()
 
     # ---- jams ----------------------------------------------------------------------------
     def _jammed(self) -> bool:
@@ -1072,8 +1108,10 @@ class FrontierExplorer:
     def summary(self, time: float) -> dict[str, Any]:
         """The result for run.json; an exploration still going ran out of time."""
         out = self.result.as_dict()
-        if self.phase == "follow":
+        if self.phase == "follow" and self.result.started is None:
             out["end_reason"] = "time budget (perimeter)"
+        elif self.phase == "follow":  # handed back to the follower
+            out["end_reason"], out["ended"] = "time budget", round(time, 2)
         elif self.active:
             out["end_reason"], out["ended"] = "time budget", round(time, 2)
         return out

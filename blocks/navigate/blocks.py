@@ -302,6 +302,9 @@ class RoomVisits(Block):
                                           "by their closing rate (its 'triangulate')"),
         "echo_memory": Param(float, 1.0, "with 'monitored': the seconds of echoes the monitor "
                                          "remembers (its 'memory')", unit="s", min=0.0),
+        "near_echo_memory": Param(float, 30.0, "with 'monitored': the seconds the monitor "
+                                               "keeps echoes nearer than 0.6 m (its "
+                                               "'near_memory')", unit="s", min=0.0),
     }
 
     def setup(self) -> None:
@@ -321,7 +324,8 @@ class RoomVisits(Block):
         # the monitor's echoes, so a leg creeps round what it would stop rather than wait
         self._monitor = MonitorParams(min_range=spec.sonar.min_range,
                                       triangulate=self.p.triangulate,
-                                      memory=self.p.echo_memory) \
+                                      memory=self.p.echo_memory,
+                                      near_memory=self.p.near_echo_memory) \
             if self.p.monitored else None
         self._cone, self._max_range = spec.sonar.cone_deg, spec.sonar.max_range
         self._pursuit = PursuitParams(cruise=min(self.p.cruise, spec.limits.max_speed),
@@ -478,6 +482,10 @@ class CollisionMonitorBlock(Block):
                         min=0.0, max=0.3),
         "memory": Param(float, 1.0, "echoes this recent count, carried along by odometry",
                         unit="s", min=0.0),
+        "near_memory": Param(float, 30.0, "echoes nearer than near_range count this long: the "
+                                          "wall beside the robot when its sonars, flush "
+                                          "with it, no longer range it", unit="s", min=0.0),
+        "near_range": Param(float, 0.6, "see near_memory", unit="m", min=0.0),
         "triangulate": Param(bool, False, "also locate near echoes by how fast their ranges "
                                           "close as the robot drives "
                                           "(navigate.sonar_triangulation)"),
@@ -492,6 +500,8 @@ class CollisionMonitorBlock(Block):
         self._guard = SonarGuard.for_robot(spec)
         self._params = MonitorParams(time_before_collision=self.p.time_before_collision,
                                      margin=self.p.margin, memory=self.p.memory,
+                                     near_memory=self.p.near_memory,
+                                     near_range=self.p.near_range,
                                      min_range=spec.sonar.min_range,
                                      triangulate=self.p.triangulate)
 

@@ -73,6 +73,13 @@ class MonitorParams:
         diagonal sonar's cone, where the arc rule lets it through.
     triangulate_lags, triangulate_range, triangulate_tolerance
         See ``triangulate`` and the function's ``max_range`` and ``tolerance_deg``.
+    near_range, near_memory
+        Echoes nearer than ``near_range`` (m) are kept ``near_memory`` seconds, not
+        ``memory``: the wall a robot drove along is still there when it backs or
+        turns into it later, its sonars then reading nothing useful (a side flush
+        with a wall reads the least range; a wall end seen edge on, nothing).  A
+        near echo's arc is short, so it says where the wall is; odometry drifts
+        little in that time.
     """
 
     time_before_collision: float = 0.6
@@ -89,6 +96,8 @@ class MonitorParams:
     triangulate_lags: tuple[float, ...] = (0.3, 0.5)
     triangulate_range: float = 1.0
     triangulate_tolerance: float = 10.0
+    near_range: float = 0.6
+    near_memory: float = 30.0
 
 
 def carry_points(points: np.ndarray, then: np.ndarray, now: np.ndarray) -> np.ndarray:
@@ -167,6 +176,10 @@ class EchoMemory:
         self.p = params or MonitorParams()
         # time, odometry pose, echo arcs (and triangulated points), raw ranges
         self._scans: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque()
+        # near echoes kept longer: time and arcs in the odometry frame
+        self._near: deque[tuple[float, np.ndarray]] = deque()
+        self._near_pose: np.ndarray | None = None  # where the last kept were heard
+        self._cached: tuple[float, tuple[float, ...], np.ndarray] | None = None
 
     def add(self, time: float, pose: np.ndarray, ranges: np.ndarray) -> None:
         """Remember this tick's echoes, heard at odometry ``pose``; forget the old ones."""
@@ -184,6 +197,26 @@ class EchoMemory:
             if self.p.triangulate else self.p.memory
         while self._scans and self._scans[0][0] < time - keep + 1e-9:
             self._scans.popleft()
+        if self.p.near_memory > self.p.memory:
+            self._remember_near(time, pose, raw)
+
+    def _remember_near(self, time: float, pose: np.ndarray, raw: np.ndarray) -> None:
+        """Keep this scan's near echoes (not those at the least range: they are on the
+        body, wherever it was) in the odometry frame for ``near_memory`` seconds; a
+        robot standing still hears the same ones again, and they are kept once."""
+        near = (raw < self.p.near_range) & (raw > self.p.min_range + self.p.touch)
+        last = self._near_pose
+        moved = last is None or math.hypot(pose[0] - last[0], pose[1] - last[1]) >= 0.02 \
+            or abs(math.remainder(pose[2] - last[2], 2 * math.pi)) >= 0.03
+        if near.any() and moved:
+            self._near_pose = pose
+            arcs = self.guard.echo_arcs(np.where(near, raw, math.inf))
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            world = np.stack([pose[0] + c * arcs[..., 0] - s * arcs[..., 1],
+                              pose[1] + s * arcs[..., 0] + c * arcs[..., 1]], axis=-1)
+            self._near.append((time, world))
+        while self._near and self._near[0][0] < time - self.p.near_memory + 1e-9:
+            self._near.popleft()
 
     def _triangulated(self, time: float, pose: np.ndarray, raw: np.ndarray) -> np.ndarray:
         """Points of this scan's near echoes located against the scans ``triangulate_lags`` ago."""
@@ -208,11 +241,37 @@ class EchoMemory:
     def arcs(self, pose: np.ndarray) -> np.ndarray:
         """(E, S, 2) the remembered echo arcs in the frame of odometry ``pose``."""
         pose = np.asarray(pose, dtype=np.float64)
+        now = self._scans[-1][0] if self._scans else -math.inf
+        key = tuple(float(v) for v in pose)
+        if self._cached is not None and self._cached[:2] == (now, key):
+            return self._cached[2]  # asked again this tick, from the same pose
+        arcs = self._arcs(pose)
+        self._cached = (now, key, arcs)
+        return arcs
+
+    def _arcs(self, pose: np.ndarray) -> np.ndarray:
+        """The last ``memory`` seconds' arcs and the older near ones, in ``pose``'s frame."""
         carried = [carry_points(arcs, then, pose) for t, then, arcs, _ in self._scans
                    if len(arcs) and t >= self._scans[-1][0] - self.p.memory + 1e-9]
+        if self._near and self._scans:
+            recent = self._scans[-1][0] - self.p.memory + 1e-9
+            older = [arcs for t, arcs in self._near if t < recent]
+            if older:
+                carried.append(self._near_in_frame(np.concatenate(older), pose))
         if not carried:
             return np.zeros((0, max(self.guard.arc_samples, 1), 2))
         return np.concatenate(carried)
+
+    def _near_in_frame(self, world: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        """Odometry-frame arcs in the frame of ``pose``, only those within the reach of a
+        monitored motion (the body's corners plus a second at the top speed)."""
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        dx, dy = world[..., 0] - pose[0], world[..., 1] - pose[1]
+        local = np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
+        reach = math.hypot(self.guard.length, self.guard.width) / 2 + 1.0
+        close = (np.abs(local[..., 0]) <= reach).all(axis=1) \
+            & (np.abs(local[..., 1]) <= reach).all(axis=1)
+        return local[close]
 
     def collision_time(self, pose: np.ndarray, v: float, w: float) -> float:
         """Seconds until the body driving at (v, w) from odometry ``pose`` covers a
