@@ -103,6 +103,32 @@ def test_near_echoes_are_kept_for_the_near_memory_far_and_touching_ones_for_the_
     assert len(echoes.arcs(np.array([0.2, 0.0, 0.0]))) == 0  # past the near memory
 
 
+def test_a_kept_near_echo_is_freed_where_a_later_echo_from_farther_off_crosses_it():
+    """Beside a doorway the jambs' kept arcs reach across the opening; a sonar that later
+    hears its nearest echo beyond them shows that part free.  No echo shows nothing."""
+    one = SonarGuard(np.array([[0.25, 0.0, 0.0]]))
+    echoes = EchoMemory(one, MonitorParams(memory=1.0, near_range=0.6, near_memory=30.0))
+    echoes.add(0.0, np.zeros(3), np.array([0.4]))  # an arc 0.65 m ahead, 0.1 m either side
+    for k in range(1, 20):  # no echo (a grazing wall is silent): kept
+        echoes.add(0.1 * k, np.zeros(3), np.array([4.0]))
+    assert len(echoes.arcs(np.zeros(3))) == 1
+    def hear_far(time: float, heading: float) -> float:
+        """Hear an echo 2 m off turned ``heading`` (deg), then nothing for over the memory."""
+        echoes.add(time, np.array([0.0, 0.0, math.radians(heading)]), np.array([2.0]))
+        for k in range(1, 12):
+            echoes.add(time + 0.1 * k, np.zeros(3), np.array([4.0]))
+        return time + 1.2
+
+    # turned 10 degrees left: the arc's left end is inside the cone, nearer than 2 m, and
+    # free; the rest is not, and the echo is there
+    time = hear_far(2.0, 10.0)
+    kept = echoes.arcs(np.zeros(3))
+    assert len(kept) == 1 and kept[0, 2].tolist() == kept[0, 0].tolist()  # the left end
+    assert kept[0, :, 1].max() < 0.05 and kept[0, :, 1].min() < -0.05  # is freed, the rest not
+    hear_far(time, 0.0)  # straight on: all of it free
+    assert len(echoes.arcs(np.zeros(3))) == 0
+
+
 def backing_flush_against_a_wall(near_memory: float) -> float:
     """A robot drove along a wall 0.2 m off its right side, then turned 17 degrees left
     with its right side to it; its right sonars now read their least range (the wall is

@@ -13,8 +13,10 @@ way failed.  It ends with an honest reason:
 
 ``explored``
     No frontier the robot can reach is left, even after a look round on the
-    spot.  Those out of reach for its footprint, and those whose ways kept
-    failing, are counted in run.json.
+    spot.  Those out of reach for its footprint are counted in run.json.
+``frontiers given up``
+    As ``explored``, but frontiers whose ways kept failing, tried again, are
+    left: floor the robot knows it has not mapped.
 ``stuck``
     Too many ways in a row failed without the robot getting anywhere.
 
@@ -718,7 +720,8 @@ class FrontierExplorer:
             self._retry_given_up(time)
             return False
         self.result.frontiers_given_up = self._given_up_left
-        self._end(time, "explored")
+        # frontiers left behind failed ways are floor not mapped: say so, not "explored"
+        self._end(time, "frontiers given up" if self._given_up_left else "explored")
         return False
 
     def _retry_given_up(self, time: float) -> None:
@@ -1035,6 +1038,9 @@ class FrontierExplorer:
         self.result.hand_backs += 1
         self.result.log.append({"t": round(time, 1), "hand back": "stuck",
                                 "at": [round(float(v), 2) for v in self._last[:2]]})
+        # the follower's troubles before count for nothing: it is here to get out of the
+        # place they happened (each taken as a cycle, it would be taken over at once)
+        self._trouble_spots, self._hold_spots, self._follower_trouble = [], [], []
         self._abandon("follow")
         self._follow_until = self._driven + self.p.hand_back_distance
         self._failures = self._retraces = self._refused = 0

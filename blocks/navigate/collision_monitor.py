@@ -79,7 +79,8 @@ class MonitorParams:
         turns into it later, its sonars then reading nothing useful (a side flush
         with a wall reads the least range; a wall end seen edge on, nothing).  A
         near echo's arc is short, so it says where the wall is; odometry drifts
-        little in that time.
+        little in that time.  A later echo from farther along a sonar's cone frees
+        the kept points inside it nearer by more than ``carve_tolerance`` (m).
     """
 
     time_before_collision: float = 0.6
@@ -98,6 +99,7 @@ class MonitorParams:
     triangulate_tolerance: float = 10.0
     near_range: float = 0.6
     near_memory: float = 30.0
+    carve_tolerance: float = 0.05
 
 
 def carry_points(points: np.ndarray, then: np.ndarray, now: np.ndarray) -> np.ndarray:
@@ -176,8 +178,10 @@ class EchoMemory:
         self.p = params or MonitorParams()
         # time, odometry pose, echo arcs (and triangulated points), raw ranges
         self._scans: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque()
-        # near echoes kept longer: time and arcs in the odometry frame
-        self._near: deque[tuple[float, np.ndarray]] = deque()
+        # near echoes kept longer: (K, S, 2) arcs in the odometry frame, and when heard
+        samples = max(guard.arc_samples, 1)
+        self._near_arcs = np.zeros((0, samples, 2))
+        self._near_times = np.zeros(0)
         self._near_pose: np.ndarray | None = None  # where the last kept were heard
         self._cached: tuple[float, tuple[float, ...], np.ndarray] | None = None
 
@@ -204,6 +208,11 @@ class EchoMemory:
         """Keep this scan's near echoes (not those at the least range: they are on the
         body, wherever it was) in the odometry frame for ``near_memory`` seconds; a
         robot standing still hears the same ones again, and they are kept once."""
+        old = self._near_times < time - self.p.near_memory + 1e-9
+        if old.any():
+            self._near_arcs, self._near_times = self._near_arcs[~old], self._near_times[~old]
+        if len(self._near_times):
+            self._carve_near(pose, raw)
         near = (raw < self.p.near_range) & (raw > self.p.min_range + self.p.touch)
         last = self._near_pose
         moved = last is None or math.hypot(pose[0] - last[0], pose[1] - last[1]) >= 0.02 \
@@ -214,9 +223,58 @@ class EchoMemory:
             c, s = math.cos(pose[2]), math.sin(pose[2])
             world = np.stack([pose[0] + c * arcs[..., 0] - s * arcs[..., 1],
                               pose[1] + s * arcs[..., 0] + c * arcs[..., 1]], axis=-1)
-            self._near.append((time, world))
-        while self._near and self._near[0][0] < time - self.p.near_memory + 1e-9:
-            self._near.popleft()
+            self._near_arcs = np.concatenate([self._near_arcs, world])
+            self._near_times = np.concatenate([self._near_times, np.full(len(world), time)])
+
+    def _carve_near(self, pose: np.ndarray, raw: np.ndarray) -> None:
+        """Forget the kept near arcs' points that this scan's echoes show are free.
+
+        Why: an arc only says the echo is somewhere across the cone.  Beside a
+        doorway the jambs' arcs reach across the opening, and kept for
+        ``near_memory`` seconds from every pose of an approach they close it.
+        A sonar that hears its nearest echo at ``r`` has nothing nearer anywhere
+        in its cone, so a kept point inside that cone more than ``carve_tolerance``
+        nearer is free.  A reading with no echo says nothing (a wall at grazing
+        incidence is silent), nor does one at the least range.  A partly freed
+        arc keeps its other points: the echo was there.
+        """
+        guard = self.guard
+        mounts = np.asarray(guard.mounts, dtype=np.float64).reshape(-1, 3)
+        echo = (raw < guard.max_range - guard.max_range_margin) \
+            & (raw > self.p.min_range + self.p.touch)
+        if not echo.any():
+            return
+        m, r = mounts[echo], raw[echo] - self.p.carve_tolerance
+        arcs = self._near_arcs
+        # only arcs within reach of an echo can be freed (most kept ones are behind)
+        reach = float(r.max()) + float(np.hypot(*np.abs(m[:, :2]).max(axis=0)))
+        centre = arcs[:, arcs.shape[1] // 2]
+        within = np.flatnonzero(np.hypot(centre[:, 0] - pose[0], centre[:, 1] - pose[1])
+                                < reach + 0.2)
+        if not len(within):
+            return
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        sx = pose[0] + c * m[:, 0] - s * m[:, 1]
+        sy = pose[1] + s * m[:, 0] + c * m[:, 1]
+        heading = pose[2] + m[:, 2]
+        world = arcs[within]
+        dx = world[..., 0, None] - sx  # (W, S, N)
+        dy = world[..., 1, None] - sy
+        off = np.abs(np.remainder(np.arctan2(dy, dx) - heading + math.pi, 2 * math.pi) - math.pi)
+        free = ((dx * dx + dy * dy < np.maximum(r, 0.0) ** 2)
+                & (off <= math.radians(guard.cone_deg) / 2)).any(axis=-1)  # (W, S)
+        if not free.any():
+            return
+        # a freed point takes the place of one the echo may still be at; a wholly freed
+        # arc goes
+        first = np.argmax(~free, axis=1)
+        arcs[within] = np.where(free[..., None], world[np.arange(len(world)), first][:, None],
+                                world)
+        gone = within[free.all(axis=1)]
+        if len(gone):
+            keep = np.ones(len(arcs), dtype=bool)
+            keep[gone] = False
+            self._near_arcs, self._near_times = arcs[keep], self._near_times[keep]
 
     def _triangulated(self, time: float, pose: np.ndarray, raw: np.ndarray) -> np.ndarray:
         """Points of this scan's near echoes located against the scans ``triangulate_lags`` ago."""
@@ -253,11 +311,10 @@ class EchoMemory:
         """The last ``memory`` seconds' arcs and the older near ones, in ``pose``'s frame."""
         carried = [carry_points(arcs, then, pose) for t, then, arcs, _ in self._scans
                    if len(arcs) and t >= self._scans[-1][0] - self.p.memory + 1e-9]
-        if self._near and self._scans:
-            recent = self._scans[-1][0] - self.p.memory + 1e-9
-            older = [arcs for t, arcs in self._near if t < recent]
-            if older:
-                carried.append(self._near_in_frame(np.concatenate(older), pose))
+        if len(self._near_times) and self._scans:
+            older = self._near_times < self._scans[-1][0] - self.p.memory + 1e-9
+            if older.any():
+                carried.append(self._near_in_frame(self._near_arcs[older], pose))
         if not carried:
             return np.zeros((0, max(self.guard.arc_samples, 1), 2))
         return np.concatenate(carried)
