@@ -129,6 +129,19 @@ def test_a_kept_near_echo_is_freed_where_a_later_echo_from_farther_off_crosses_i
     assert len(echoes.arcs(np.zeros(3))) == 0
 
 
+def test_monitors_sharing_one_memory_add_no_scans_and_check_with_their_own_horizon():
+    """navigate.echo_memory feeds one memory to the monitor and the behaviours; each checks
+    motions on it with its own parameters."""
+    shared = EchoMemory(guard(), MonitorParams(memory=1.0))
+    shared.add(0.0, np.zeros(3), reading(Fr1=0.5, Fr2=0.5))
+    quick = CollisionMonitor(guard(), MonitorParams(time_before_collision=0.6), echoes=shared)
+    wary = CollisionMonitor(guard(), MonitorParams(time_before_collision=3.0), echoes=shared)
+    assert quick.step(0.0, np.zeros(3), reading(), 0.4, 0.0) == (0.4, 0.0)
+    v, _ = wary.step(0.0, np.zeros(3), reading(), 0.4, 0.0)  # the echo within its 3 s
+    assert 0.0 < v < 0.4
+    assert len(shared.arcs(np.zeros(3))) == 2  # their readings (none) were not added
+
+
 def backing_flush_against_a_wall(near_memory: float) -> float:
     """A robot drove along a wall 0.2 m off its right side, then turned 17 degrees left
     with its right side to it; its right sonars now read their least range (the wall is

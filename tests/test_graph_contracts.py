@@ -31,11 +31,12 @@ def test_the_contract_sees_the_main_graphs():
 
 def test_the_behaviours_judge_motions_on_the_monitors_memory():
     """The explorer and the room visits replay the monitor's echo memory to creep round
-    what it would stop: one graph parameter sets all three, so they cannot disagree."""
+    what it would stop: one memory, set by the graph parameters, feeds all three, so
+    they cannot disagree."""
     graph = load_graph(ROOT / "graphs" / "semantic_mapping.yaml",
                        ["echo_memory=3", "near_echo_memory=12"])
-    assert graph.nodes["monitor"].params["memory"] == 3.0
-    assert graph.nodes["monitor"].params["near_memory"] == 12.0
-    for behaviour in ("explorer", "rooms"):
-        assert graph.nodes[behaviour].params["echo_memory"] == 3.0
-        assert graph.nodes[behaviour].params["near_echo_memory"] == 12.0
+    memory = graph.nodes["echoes"]
+    assert memory.type_name == "navigate.echo_memory"
+    assert memory.params["memory"] == 3.0 and memory.params["near_memory"] == 12.0
+    fed = {(e.dst.node, e.dst.port) for e in graph.edges if e.src.node == "echoes"}
+    assert fed == {("monitor", "echoes"), ("explorer", "echoes"), ("rooms", "echoes")}

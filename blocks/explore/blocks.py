@@ -8,6 +8,7 @@ import numpy as np
 
 from ..core import Block, BlockError, Param, Port, block
 from ..fuzzy import compile_kb, load_kb
+from ..navigate.blocks import echo_memory_input
 from .controller import (KB_DIR, narrow_corridor_groups, sonar_group_index, sonar_groups,
                          sonar_groups_one)
 from .loop import LoopClosure
@@ -273,7 +274,10 @@ class FrontierExploration(Block):
               "monitor_scale": Port.scalar("float64", required=False, default=1.0,
                                            doc="how much of the last command the collision "
                                                "monitor let through (its 'scale', with a "
-                                               "delay of 1; with 'monitored')")}
+                                               "delay of 1; with 'monitored')"),
+              "echoes": Port(kind="handle", required=False, default=None,
+                             doc="with 'monitored': the monitor's navigate.echo_memory, to "
+                                 "judge motions on (unconnected: a copy of its own)")}
     outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity"),
                "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity (CCW +)"),
                "exploring": Port.scalar("bool", doc="true while the frontier explorer drives"),
@@ -326,13 +330,15 @@ class FrontierExploration(Block):
                                         "between this block and the wheels: judge every "
                                         "motion as it will, and count a bumper that stays "
                                         "pressed as one bump"),
-        "triangulate": Param(bool, False, "with 'monitored': the monitor locates near echoes "
-                                          "by their closing rate (its 'triangulate')"),
-        "echo_memory": Param(float, 1.0, "with 'monitored': the seconds of echoes the monitor "
-                                         "remembers (its 'memory')", unit="s", min=0.0),
-        "near_echo_memory": Param(float, 30.0, "with 'monitored': the seconds the monitor "
-                                               "keeps echoes nearer than 0.6 m (its "
-                                               "'near_memory')", unit="s", min=0.0),
+        "triangulate": Param(bool, False, "with 'monitored' and no 'echoes': the monitor "
+                                          "locates near echoes by their closing rate (its "
+                                          "'triangulate')"),
+        "echo_memory": Param(float, 1.0, "with 'monitored' and no 'echoes': the seconds of "
+                                         "echoes the monitor remembers (its 'memory')",
+                             unit="s", min=0.0),
+        "near_echo_memory": Param(float, 30.0, "with 'monitored' and no 'echoes': the seconds "
+                                               "the monitor keeps echoes nearer than 0.6 m "
+                                               "(its 'near_memory')", unit="s", min=0.0),
     }
     category = "explore"
 
@@ -373,6 +379,7 @@ class FrontierExploration(Block):
     def reset(self) -> None:
         from .explorer import FrontierExplorer
         self._map: Any = None
+        self._echoes: Any = None
         self.explorer = FrontierExplorer(self._snapshot, self._guard, self._params,
                                          self._pursuit, bumpers=self._bumpers)
 
@@ -389,10 +396,13 @@ class FrontierExploration(Block):
              v_in: float, w_in: float, follower_done: bool = False, hold: bool = False,
              preempted: bool = False, bumpers: np.ndarray | None = None,
              odometry: np.ndarray | None = None,
-             monitor_scale: float = 1.0) -> dict[str, Any]:
+             monitor_scale: float = 1.0, echoes: Any = None) -> dict[str, Any]:
         if not self.p.enabled:
             return {"v": float(v_in), "w": float(w_in), "exploring": False,
                     "done": bool(follower_done)}
+        if echoes is not None and echoes is not self._echoes:
+            self._echoes = echoes
+            self.explorer.share_echoes(echo_memory_input(echoes, self.name))
         self._map = map
         if bumpers is not None and len(bumpers) != len(self._bumpers):
             raise BlockError(f"{len(bumpers)} bumpers on the 'bumpers' input, but the robot "

@@ -325,6 +325,7 @@ class FrontierExplorer:
         self._align_heading = 0.0
         self._narrow_guard = replace(guard, side_margin=0.0)
         self._echoes = None if self.p.monitor is None else EchoMemory(guard, self.p.monitor)
+        self._feeds_echoes = True
         self._pressed: set[int] = set()  # bumpers pressed on the last tick
         self._held = HeldClock()  # by the monitor
         self._held_for = 0.0
@@ -367,6 +368,12 @@ class FrontierExplorer:
         self._follow_until: float | None = None  # handed back: driven this far, take over
 
     # ---- the machine ---------------------------------------------------------------------
+    def share_echoes(self, echoes: EchoMemory) -> None:
+        """Judge motions (with ``params.monitor``) on ``echoes``, the monitor's, fed with
+        this tick's scan before each step, rather than on a copy of its own."""
+        if self.p.monitor is not None:
+            self._echoes, self._feeds_echoes = echoes, False
+
     @property
     def active(self) -> bool:
         """Whether exploration drives (it has taken over and not ended)."""
@@ -398,7 +405,7 @@ class FrontierExplorer:
         """
         pose = np.asarray(pose, dtype=np.float64)
         self._odometry = pose if odometry is None else np.asarray(odometry, dtype=np.float64)
-        if self._echoes is not None:
+        if self._echoes is not None and self._feeds_echoes:
             self._echoes.add(time, self._odometry, ranges)
         self._remember(time, pose)
         self._note_monitor(time, monitor_scale)
@@ -836,7 +843,7 @@ class FrontierExplorer:
             if why:
                 # only the monitor would stop it (a corner the curve swings onto): creep the
                 # nearest way it lets through, as it would itself after a second; keep the way
-                creep = self._echoes.nearest_clear(self._odometry, v, w)
+                creep = self._echoes.nearest_clear(self._odometry, v, w, self.p.monitor)
                 if creep is not None:
                     return creep
         touched = None if why else self._touched_in_sweep(pose, v, w)
@@ -889,7 +896,7 @@ class FrontierExplorer:
         to (v, w) that the monitor lets through, or None (not boxed in, or no such motion)."""
         if self._echoes is None or self._refused < self.p.jam_failures:
             return None
-        return self._echoes.nearest_clear(self._odometry, v, w)
+        return self._echoes.nearest_clear(self._odometry, v, w, self.p.monitor)
 
     def _blocked(self, ranges: np.ndarray, v: float, w: float, narrow: bool = False) -> str:
         """Why the motion (v, w) is refused: by the sonar guard on this tick's echoes (its
@@ -901,7 +908,7 @@ class FrontierExplorer:
     def _monitor_stops(self, v: float, w: float) -> str:
         """``ahead``, ``behind`` or ``turning`` if the monitor downstream would stop the
         motion (v, w), else '' (also without a monitor)."""
-        if self._echoes is None or not self._echoes.stops(self._odometry, v, w):
+        if self._echoes is None or not self._echoes.stops(self._odometry, v, w, self.p.monitor):
             return ""
         return "ahead" if v > 1e-3 else "behind" if v < -1e-3 else "turning"
 

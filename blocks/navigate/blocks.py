@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -249,7 +250,10 @@ class RoomVisits(Block):
               "monitor_scale": Port.scalar("float64", required=False, default=1.0,
                                            doc="how much of the last command the collision "
                                                "monitor let through (its 'scale', with a "
-                                               "delay of 1; with 'monitored')")}
+                                               "delay of 1; with 'monitored')"),
+              "echoes": Port(kind="handle", required=False, default=None,
+                             doc="with 'monitored': the monitor's navigate.echo_memory, to "
+                                 "judge motions on (unconnected: a copy of its own)")}
     outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity"),
                "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity (CCW +)"),
                "visiting": Port.scalar("bool", doc="true while a visit or a plate view drives "
@@ -298,13 +302,15 @@ class RoomVisits(Block):
                                         "and the wheels: a leg it stops for 'held_time' is "
                                         "given up"),
         "held_time": Param(float, 0.8, "see 'monitored'", unit="s", min=0.1),
-        "triangulate": Param(bool, False, "with 'monitored': the monitor locates near echoes "
-                                          "by their closing rate (its 'triangulate')"),
-        "echo_memory": Param(float, 1.0, "with 'monitored': the seconds of echoes the monitor "
-                                         "remembers (its 'memory')", unit="s", min=0.0),
-        "near_echo_memory": Param(float, 30.0, "with 'monitored': the seconds the monitor "
-                                               "keeps echoes nearer than 0.6 m (its "
-                                               "'near_memory')", unit="s", min=0.0),
+        "triangulate": Param(bool, False, "with 'monitored' and no 'echoes': the monitor "
+                                          "locates near echoes by their closing rate (its "
+                                          "'triangulate')"),
+        "echo_memory": Param(float, 1.0, "with 'monitored' and no 'echoes': the seconds of "
+                                         "echoes the monitor remembers (its 'memory')",
+                             unit="s", min=0.0),
+        "near_echo_memory": Param(float, 30.0, "with 'monitored' and no 'echoes': the seconds "
+                                               "the monitor keeps echoes nearer than 0.6 m "
+                                               "(its 'near_memory')", unit="s", min=0.0),
     }
 
     def setup(self) -> None:
@@ -356,6 +362,7 @@ class RoomVisits(Block):
         self._builds: list[float] = []
         self._version: Any = None
         self._echoes = None if self._monitor is None else EchoMemory(self._guard, self._monitor)
+        self._feeds_echoes = True
         self.visitor = RoomVisitor(self._map_since, self._params, self._pursuit,
                                    echoes=self._echoes)
         self.viewer = PlateViewer(self._map_since, self._guard, pursuit=self._pursuit,
@@ -405,12 +412,17 @@ class RoomVisits(Block):
 
     def step(self, pose: np.ndarray, ranges: np.ndarray, v_in: float, w_in: float,
              signs: Any = None, hold: bool = False, done_in: bool = False,
-             plates: list | None = None, monitor_scale: float = 1.0) -> dict[str, Any]:
+             plates: list | None = None, monitor_scale: float = 1.0,
+             echoes: Any = None) -> dict[str, Any]:
         if not self.p.enabled:
             return {"v": float(v_in), "w": float(w_in), "visiting": False,
                     "done": bool(done_in), "look_at": None}
         self._maps.add(self.ctx.time, pose, ranges)
-        if self._echoes is not None:
+        if echoes is not None and self._echoes is not None and echoes is not self._echoes:
+            self._echoes = self.visitor.echoes = self.viewer.echoes = \
+                echo_memory_input(echoes, self.name)
+            self._feeds_echoes = False
+        if self._echoes is not None and self._feeds_echoes:
             self._echoes.add(self.ctx.time, pose, ranges)
         if signs is not None:
             self._take_signs(signs)
@@ -448,6 +460,78 @@ class RoomVisits(Block):
             self.report("map_build_ms_mean", round(1000 * float(np.mean(self._builds)), 1))
 
 
+def echo_memory_input(value: Any, node: str) -> Any:
+    """The EchoMemory on an 'echoes' input, or a BlockError saying what to connect."""
+    from .collision_monitor import EchoMemory
+    if not isinstance(value, EchoMemory):
+        raise BlockError(f"the 'echoes' input is a {type(value).__name__}, not an echo memory",
+                         node=node, field="input 'echoes'",
+                         hint="Connect navigate.echo_memory's 'echoes' output.")
+    return value
+
+
+#: The parameters of an echo memory: navigate.echo_memory's, and navigate.collision_monitor's
+#: own when it keeps one.
+ECHO_MEMORY_PARAMS = {
+        "memory": Param(float, 1.0, "echoes this recent count, carried along by odometry",
+                        unit="s", min=0.0),
+        "near_memory": Param(float, 30.0, "echoes nearer than near_range count this long: the "
+                                          "wall beside the robot when its sonars, flush "
+                                          "with it, no longer range it", unit="s", min=0.0),
+        "near_range": Param(float, 0.6, "see near_memory", unit="m", min=0.0),
+        "triangulate": Param(bool, False, "also locate near echoes by how fast their ranges "
+                                          "close as the robot drives "
+                                          "(navigate.sonar_triangulation)"),
+}
+
+
+@block("navigate.echo_memory", category="navigate")
+class EchoMemoryBlock(Block):
+    """The sonar echoes of the last moments, carried along by odometry: one memory for the
+    collision monitor and every behaviour that asks what the monitor would let through.
+
+    Why a block: the monitor, the frontier explorer and the room visits each
+    judge motions on the same echoes; fed once here, before all of them, they
+    share one memory (and its arcs, computed once a tick) instead of keeping
+    three copies of it.  Connect ``echoes`` to their ``echoes`` inputs; the
+    memory's parameters are then this block's, and theirs of the same names
+    are unused (:class:`~blocks.navigate.collision_monitor.EchoMemory`).
+    """
+
+    inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
+                                 doc="the robot's odometry pose (carries older echoes along)"),
+              "ranges": Port.array("float64", (16,), unit="m", frame="robot",
+                                   doc="sonar ranges, in the robot file's order")}
+    outputs = {"echoes": Port(kind="handle", doc="the echo memory, this tick's scan added: "
+                                                 "for the 'echoes' inputs of "
+                                                 "navigate.collision_monitor, explore.frontiers "
+                                                 "and navigate.room_visits")}
+    params = {
+        "robot": Param(str, "atrv_mini", "robot model (body and sonar)"),
+        **ECHO_MEMORY_PARAMS,
+    }
+
+    def setup(self) -> None:
+        from sim2d.robot import load_robot
+
+        from .collision_monitor import MonitorParams
+        from .guard import SonarGuard
+        spec = load_robot(self.p.robot)
+        self._guard = SonarGuard.for_robot(spec)
+        self._params = MonitorParams(memory=self.p.memory, near_memory=self.p.near_memory,
+                                     near_range=self.p.near_range,
+                                     min_range=spec.sonar.min_range,
+                                     triangulate=self.p.triangulate)
+
+    def reset(self) -> None:
+        from .collision_monitor import EchoMemory
+        self.memory = EchoMemory(self._guard, self._params)
+
+    def step(self, pose: np.ndarray, ranges: np.ndarray) -> dict[str, Any]:
+        self.memory.add(self.ctx.time, np.asarray(pose, dtype=np.float64), ranges)
+        return {"echoes": self.memory}
+
+
 @block("navigate.collision_monitor", category="navigate")
 class CollisionMonitorBlock(Block):
     """The last check on every command: slows and stops the robot short of what its sonars hear.
@@ -468,7 +552,10 @@ class CollisionMonitorBlock(Block):
               "ranges": Port.array("float64", (16,), unit="m", frame="robot",
                                    doc="sonar ranges, in the robot file's order"),
               "v_in": Port.scalar("float64", unit="m/s", doc="the translation asked for"),
-              "w_in": Port.scalar("float64", unit="rad/s", doc="the rotation asked for")}
+              "w_in": Port.scalar("float64", unit="rad/s", doc="the rotation asked for"),
+              "echoes": Port(kind="handle", required=False, default=None,
+                             doc="a navigate.echo_memory's, shared with the behaviours "
+                                 "(unconnected: the monitor keeps its own)")}
     outputs = {"v": Port.scalar("float64", unit="m/s", doc="translation velocity, made safe"),
                "w": Port.scalar("float64", unit="rad/s", doc="rotation velocity, made safe"),
                "scale": Port.scalar("float64", doc="how much of the command was let through "
@@ -480,15 +567,9 @@ class CollisionMonitorBlock(Block):
                                                    "this", unit="s", min=0.1),
         "margin": Param(float, 0.03, "the body is grown by this much for the check", unit="m",
                         min=0.0, max=0.3),
-        "memory": Param(float, 1.0, "echoes this recent count, carried along by odometry",
-                        unit="s", min=0.0),
-        "near_memory": Param(float, 30.0, "echoes nearer than near_range count this long: the "
-                                          "wall beside the robot when its sonars, flush "
-                                          "with it, no longer range it", unit="s", min=0.0),
-        "near_range": Param(float, 0.6, "see near_memory", unit="m", min=0.0),
-        "triangulate": Param(bool, False, "also locate near echoes by how fast their ranges "
-                                          "close as the robot drives "
-                                          "(navigate.sonar_triangulation)"),
+        **{name: replace(param, doc=param.doc + " (unused with 'echoes' connected: the "
+                                                "memory's own)")
+           for name, param in ECHO_MEMORY_PARAMS.items()},
     }
 
     def setup(self) -> None:
@@ -511,9 +592,11 @@ class CollisionMonitorBlock(Block):
         self._ticks = 0
 
     def step(self, pose: np.ndarray, ranges: np.ndarray, v_in: float,
-             w_in: float) -> dict[str, Any]:
+             w_in: float, echoes: Any = None) -> dict[str, Any]:
         if not self.p.enabled:
             return {"v": float(v_in), "w": float(w_in), "scale": 1.0}
+        if echoes is not None and self.monitor.echoes is not echoes:
+            self.monitor.share_echoes(echo_memory_input(echoes, self.name))
         self._ticks += 1
         v, w = self.monitor.step(self.ctx.time, pose, ranges, float(v_in), float(w_in))
         return {"v": float(v), "w": float(w), "scale": float(self.monitor.scale)}

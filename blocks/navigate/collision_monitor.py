@@ -330,35 +330,47 @@ class EchoMemory:
             & (np.abs(local[..., 1]) <= reach).all(axis=1)
         return local[close]
 
-    def collision_time(self, pose: np.ndarray, v: float, w: float) -> float:
+    def collision_time(self, pose: np.ndarray, v: float, w: float,
+                       checks: MonitorParams | None = None) -> float:
         """Seconds until the body driving at (v, w) from odometry ``pose`` covers a
-        remembered echo, as the monitor sweeps it; inf if not within its horizon."""
-        return self.guard.collision_time(self.arcs(pose), v, w, self.p.time_before_collision,
-                                         step=self.p.step, margin=self.p.margin)
+        remembered echo, as the monitor sweeps it; inf if not within its horizon.
 
-    def stops(self, pose: np.ndarray, v: float, w: float) -> bool:
+        ``checks`` gives the horizon, step and margin (``time_before_collision``,
+        ``step``, ``margin``): a monitor's own, when it shares this memory; else
+        this memory's parameters.
+        """
+        c = checks or self.p
+        return self.guard.collision_time(self.arcs(pose), v, w, c.time_before_collision,
+                                         step=c.step, margin=c.margin)
+
+    def stops(self, pose: np.ndarray, v: float, w: float,
+              checks: MonitorParams | None = None) -> bool:
         """Whether a collision monitor with these echoes would stop the motion (v, w)."""
-        return self.collision_time(pose, v, w) <= self.p.step
+        return self.collision_time(pose, v, w, checks) <= (checks or self.p).step
 
-    def nearest_clear(self, pose: np.ndarray, v: float, w: float) -> tuple[float, float] | None:
+    def nearest_clear(self, pose: np.ndarray, v: float, w: float,
+                      checks: MonitorParams | None = None) -> tuple[float, float] | None:
         """The slow motion nearest to (v, w) that reaches no echo within the horizon, or None.
 
         The candidates are backing, standing and creeping ahead at ``recovery_speed``,
-        each turning either way or not at ``recovery_turn``; nearness weighs speeds as
-        shares of those.
+        each turning either way or not at ``recovery_turn`` (of ``checks``, as
+        :meth:`collision_time`); nearness weighs speeds as shares of those.
         """
+        c = checks or self.p
         arcs = self.arcs(pose)
-        speed, turn = self.p.recovery_speed, self.p.recovery_turn
+        speed, turn = c.recovery_speed, c.recovery_turn
         options = [(a * speed, b * turn) for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0)
                    if a or b]
         options.sort(key=lambda o: ((o[0] - v) / speed) ** 2 + ((o[1] - w) / turn) ** 2)
-        return next((o for o in options if self.lets_through(arcs, *o)), None)
+        return next((o for o in options if self.lets_through(arcs, *o, checks=c)), None)
 
-    def lets_through(self, arcs: np.ndarray, v: float, w: float) -> bool:
+    def lets_through(self, arcs: np.ndarray, v: float, w: float,
+                     checks: MonitorParams | None = None) -> bool:
         """Whether (v, w) reaches none of ``arcs`` (this memory's, in the robot's frame)
-        within the horizon."""
-        return self.guard.collision_time(arcs, v, w, self.p.time_before_collision,
-                                         step=self.p.step, margin=self.p.margin) == math.inf
+        within the horizon (of ``checks``, as :meth:`collision_time`)."""
+        c = checks or self.p
+        return self.guard.collision_time(arcs, v, w, c.time_before_collision,
+                                         step=c.step, margin=c.margin) == math.inf
 
 
 class CollisionMonitor:
@@ -370,6 +382,13 @@ class CollisionMonitor:
         The robot's sonar guard: its body, sonar mounts and echo arcs.
     params
         See :class:`MonitorParams`.
+    echoes
+        An :class:`EchoMemory` that something else feeds every tick, before this
+        monitor's step, shared with the behaviours that judge their motions on
+        it (one copy, not one each); the monitor then adds no scans itself, and
+        the memory's parameters (``memory``, ``near_memory``...) are its, while
+        the checks (``time_before_collision``, ``margin``...) are ``params``'.
+        None: the monitor keeps its own.
 
     Examples
     --------
@@ -383,10 +402,12 @@ class CollisionMonitor:
     0.23
     """
 
-    def __init__(self, guard: SonarGuard, params: MonitorParams | None = None) -> None:
+    def __init__(self, guard: SonarGuard, params: MonitorParams | None = None,
+                 echoes: EchoMemory | None = None) -> None:
         self.guard = guard
         self.p = params or MonitorParams()
-        self.echoes = EchoMemory(guard, self.p)
+        self.echoes = echoes if echoes is not None else EchoMemory(guard, self.p)
+        self._feeds = echoes is None
         self.scale = 1.0
         self.limited_ticks = 0
         self.stopped_ticks = 0
@@ -394,6 +415,10 @@ class CollisionMonitor:
         self._stopped = HeldClock()
         self._recovery: tuple[float, float] | None = None
         self._recovery_until = 0.0
+
+    def share_echoes(self, echoes: EchoMemory) -> None:
+        """Check on ``echoes`` from now on, fed by something else (see ``echoes`` above)."""
+        self.echoes, self._feeds = echoes, False
 
     def arcs(self, pose: np.ndarray) -> np.ndarray:
         """(E, S, 2) the remembered echo arcs in the frame of ``pose``."""
@@ -406,7 +431,8 @@ class CollisionMonitor:
         The scale applied is left in :attr:`scale` (1: unchanged, 0: stopped).
         """
         pose = np.asarray(pose, dtype=np.float64)
-        self.echoes.add(time, pose, ranges)
+        if self._feeds:
+            self.echoes.add(time, pose, ranges)
         arcs = self.echoes.arcs(pose)
         horizon = self.p.time_before_collision
         if self._recovery is not None and time < self._recovery_until:
@@ -423,7 +449,7 @@ class CollisionMonitor:
         if self._stopped.since is None:
             return v * self.scale, w * self.scale
         if held >= self.p.patience - 1e-9:
-            self._recovery = self.echoes.nearest_clear(pose, v, w)
+            self._recovery = self.echoes.nearest_clear(pose, v, w, self.p)
             if self._recovery is not None:
                 self.recoveries += 1
                 self._recovery_until = time + self.p.recovery_time
@@ -432,4 +458,4 @@ class CollisionMonitor:
         return 0.0, 0.0
 
     def _clear(self, arcs: np.ndarray, v: float, w: float) -> bool:
-        return self.echoes.lets_through(arcs, v, w)
+        return self.echoes.lets_through(arcs, v, w, self.p)
