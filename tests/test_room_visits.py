@@ -395,6 +395,36 @@ def test_a_leg_creeps_round_what_the_monitor_would_stop_and_keeps_its_way():
     assert "no progress" in outcomes
 
 
+def test_a_leg_backs_round_what_the_monitor_would_stop_no_more_than_creep_back():
+    """Every motion but backing stopped, the nearest clear one is backing: blind (the rear
+    has few sonars), so the leg gives up after ``creep_back`` of it, not ``stall_time``."""
+
+    class OnlyBackingClear:  # echoes ahead and at both front corners, none behind
+        calls = 0
+
+        def stops(self, pose, v, w):
+            return v >= 0.0
+
+        def nearest_clear(self, pose, v, w):
+            self.calls += 1  # now and then a turn on the spot is clear
+            return (0.0, -0.6) if self.calls % 5 == 0 else (-0.15, 0.0)
+
+    def backed_before_giving_up(creep_back: float) -> float:
+        leg = Leg(PurePursuit(np.array([[0.0, 0.0], [5.0, 0.0]])), started=0.0)
+        echoes, x = OnlyBackingClear(), 0.0
+        for k in range(300):
+            v, _, outcome = leg.step(0.1 * k, np.array([x, 0.0, 0.0]), timeout=120.0,
+                                     stall_time=60.0, echoes=echoes, creep_back=creep_back)
+            if outcome:
+                assert outcome == "no progress"
+                return -x
+            x += 0.1 * v
+        return -x
+
+    assert 0.35 <= backed_before_giving_up(0.4) <= 0.45
+    assert backed_before_giving_up(math.inf) > 2.0
+
+
 def test_a_visit_held_on_its_way_to_the_door_ends_failed_at_once():
     local = corridor_and_room()
     positions = np.array([[0.5, 6.0], [2.0, 6.0]])

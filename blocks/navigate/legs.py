@@ -27,6 +27,8 @@ class Leg:
     progress_time: float = math.nan
     last: tuple[float, float] = (0.0, 0.0)  # the command of the last step
     held: HeldClock = field(default_factory=HeldClock)  # by a collision monitor
+    backed: float = 0.0  # m backed in a row by creeping round what the monitor would stop
+    last_time: float = math.nan
 
     def __post_init__(self) -> None:
         if math.isnan(self.progress_time):
@@ -35,7 +37,8 @@ class Leg:
     def step(self, time: float, pose: np.ndarray, *, timeout: float,
              stall_time: float, scale: float = 1.0,
              held_time: float = math.inf,
-             echoes: EchoMemory | None = None) -> tuple[float, float, str]:
+             echoes: EchoMemory | None = None,
+             creep_back: float = 0.4) -> tuple[float, float, str]:
         """``(v, w, outcome)``: outcome is '' while under way, else 'arrived',
         'timeout' (longer than ``timeout`` s), 'no progress' (none for ``stall_time`` s)
         or 'held' (a collision monitor let none of the leg's command through, ``scale``
@@ -47,7 +50,11 @@ class Leg:
         met askew) is replaced by the nearest slow motion it lets through
         (:meth:`~blocks.navigate.collision_monitor.EchoMemory.nearest_clear`):
         the robot creeps round it and the way is kept; creeping that gets
-        nowhere ends as 'no progress'.
+        nowhere ends as 'no progress', and so does creeping backwards for more
+        than ``creep_back`` (m) with no going ahead between (turns on the spot
+        do not count): the rear has few sonars, and a wall behind met at a
+        slant is silent (a room visit's way back through a door 0.8 m wide
+        backed 1.2 m into one).
         """
         if self.held.update(time, scale, self.last != (0.0, 0.0)) >= held_time - 1e-9:
             self.last = (0.0, 0.0)
@@ -61,8 +68,19 @@ class Leg:
             return 0.0, 0.0, "timeout"
         if time - self.progress_time > stall_time:
             return 0.0, 0.0, "no progress"
+        backing = False
         if echoes is not None and echoes.stops(pose, v, w):
             v, w = echoes.nearest_clear(pose, v, w) or (v, w)
+            backing = v < 0.0
+        dt = 0.0 if math.isnan(self.last_time) else time - self.last_time
+        self.last_time = time
+        if backing:
+            self.backed += abs(v) * dt
+        elif v > 0.0:  # going ahead again (a turn on the spot between backs goes nowhere)
+            self.backed = 0.0
+        if self.backed > creep_back:
+            self.last = (0.0, 0.0)
+            return 0.0, 0.0, "no progress"
         self.last = (float(v), float(w))
         return float(v), float(w), ""
 
