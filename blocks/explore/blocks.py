@@ -8,7 +8,7 @@ import numpy as np
 
 from ..core import Block, BlockError, Param, Port, block
 from ..fuzzy import compile_kb, load_kb
-from ..navigate.blocks import echo_memory_input
+from ..navigate.blocks import MONITORED_ECHO_PARAMS, echo_memory_input
 from .controller import (KB_DIR, narrow_corridor_groups, sonar_group_index, sonar_groups,
                          sonar_groups_one)
 from .loop import LoopClosure
@@ -330,15 +330,7 @@ class FrontierExploration(Block):
                                         "between this block and the wheels: judge every "
                                         "motion as it will, and count a bumper that stays "
                                         "pressed as one bump"),
-        "triangulate": Param(bool, False, "with 'monitored' and no 'echoes': the monitor "
-                                          "locates near echoes by their closing rate (its "
-                                          "'triangulate')"),
-        "echo_memory": Param(float, 1.0, "with 'monitored' and no 'echoes': the seconds of "
-                                         "echoes the monitor remembers (its 'memory')",
-                             unit="s", min=0.0),
-        "near_echo_memory": Param(float, 30.0, "with 'monitored' and no 'echoes': the seconds "
-                                               "the monitor keeps echoes nearer than 0.6 m "
-                                               "(its 'near_memory')", unit="s", min=0.0),
+        **MONITORED_ECHO_PARAMS,
     }
     category = "explore"
 

@@ -209,6 +209,19 @@ class Goto(Block):
         self.report("goals", [r.as_dict() for r in visit.results])
 
 
+#: The echo memory of a behaviour with a collision monitor downstream ('monitored'), when
+#: its 'echoes' input is not connected: a copy of the monitor's, set alike.
+MONITORED_ECHO_PARAMS = {
+    "triangulate": Param(bool, False, "with 'monitored' and no 'echoes': the monitor locates "
+                                      "near echoes by their closing rate (its 'triangulate')"),
+    "echo_memory": Param(float, 1.0, "with 'monitored' and no 'echoes': the seconds of echoes "
+                                     "the monitor remembers (its 'memory')", unit="s", min=0.0),
+    "near_echo_memory": Param(float, 30.0, "with 'monitored' and no 'echoes': the seconds the "
+                                           "monitor keeps echoes nearer than 0.6 m (its "
+                                           "'near_memory')", unit="s", min=0.0),
+}
+
+
 @block("navigate.room_visits", category="navigate")
 class RoomVisits(Block):
     """Visits the room behind each sign read: in through its door, a look around, and back.
@@ -302,15 +315,7 @@ class RoomVisits(Block):
                                         "and the wheels: a leg it stops for 'held_time' is "
                                         "given up"),
         "held_time": Param(float, 0.8, "see 'monitored'", unit="s", min=0.1),
-        "triangulate": Param(bool, False, "with 'monitored' and no 'echoes': the monitor "
-                                          "locates near echoes by their closing rate (its "
-                                          "'triangulate')"),
-        "echo_memory": Param(float, 1.0, "with 'monitored' and no 'echoes': the seconds of "
-                                         "echoes the monitor remembers (its 'memory')",
-                             unit="s", min=0.0),
-        "near_echo_memory": Param(float, 30.0, "with 'monitored' and no 'echoes': the seconds "
-                                               "the monitor keeps echoes nearer than 0.6 m "
-                                               "(its 'near_memory')", unit="s", min=0.0),
+        **MONITORED_ECHO_PARAMS,
     }
 
     def setup(self) -> None:
