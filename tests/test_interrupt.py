@@ -32,7 +32,11 @@ def test_sigint_writes_run_json_and_outputs(write, tmp_path):
         time.sleep(0.05)
     time.sleep(0.3)  # let it tick for a while
     proc.send_signal(signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=30)
+    try:
+        stdout, stderr = proc.communicate(timeout=30)
+    finally:  # a run that ignored the interrupt must not go on loading the machine
+        if proc.poll() is None:
+            proc.kill()
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr and "interrupted at tick" in stderr
     run = json.loads((out / "run.json").read_text())
