@@ -26,7 +26,10 @@ def test_sigint_writes_run_json_and_outputs(write, tmp_path):
     env = {**os.environ, "CI": "true"}
     proc = subprocess.Popen([str(exe), "run", str(path), "--out", str(out), "--steps",
                              "1000000000"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env)
+                            text=True, env=env,
+                            # a suite run in the background leaves SIGINT ignored, and
+                            # exec keeps it so: the child must hear the Ctrl-C sent below
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 30
     while not (out / "run.json").exists() and time.time() < deadline:
         time.sleep(0.05)

@@ -283,7 +283,14 @@ def _start(tiny, out):
     return subprocess.Popen([str(SEMMAP), "sweep", str(tiny), "--worlds", "gen:any:0-5",
                              "--steps", MIDWAY_STEPS, "--out", str(out), "-j", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "CI": "true"}, start_new_session=True)
+                            env={**os.environ, "CI": "true"}, start_new_session=True,
+                            preexec_fn=_hear_ctrl_c)
+
+
+def _hear_ctrl_c() -> None:
+    """In the child: a shell that ran the suite in the background left SIGINT ignored, and
+    an ignored signal stays ignored across exec; Ctrl-C is what the test sends."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _wait_for_finished(out, count, proc, deadline=240):
