@@ -184,6 +184,13 @@ class EchoMemory:
         self._near_times = np.zeros(0)
         self._near_pose: np.ndarray | None = None  # where the last kept were heard
         self._cached: tuple[float, tuple[float, ...], np.ndarray] | None = None
+        self._mounts = np.asarray(guard.mounts, dtype=np.float64).reshape(-1, 3)
+
+    def _echoes(self, raw: np.ndarray) -> np.ndarray:
+        """Which readings are echoes that say where something is (not 'no echo', not the
+        least range)."""
+        return (raw < self.guard.max_range - self.guard.max_range_margin) \
+            & (raw > self.p.min_range + self.p.touch)
 
     def add(self, time: float, pose: np.ndarray, ranges: np.ndarray) -> None:
         """Remember this tick's echoes, heard at odometry ``pose``; forget the old ones."""
@@ -239,12 +246,10 @@ class EchoMemory:
         arc keeps its other points: the echo was there.
         """
         guard = self.guard
-        mounts = np.asarray(guard.mounts, dtype=np.float64).reshape(-1, 3)
-        echo = (raw < guard.max_range - guard.max_range_margin) \
-            & (raw > self.p.min_range + self.p.touch)
+        echo = self._echoes(raw)
         if not echo.any():
             return
-        m, r = mounts[echo], raw[echo] - self.p.carve_tolerance
+        m, r = self._mounts[echo], raw[echo] - self.p.carve_tolerance
         arcs = self._near_arcs
         # only arcs within reach of an echo can be freed (most kept ones are behind)
         reach = float(r.max()) + float(np.hypot(*np.abs(m[:, :2]).max(axis=0)))
@@ -278,18 +283,15 @@ class EchoMemory:
 
     def _triangulated(self, time: float, pose: np.ndarray, raw: np.ndarray) -> np.ndarray:
         """Points of this scan's near echoes located against the scans ``triangulate_lags`` ago."""
-        guard = self.guard
-        mounts = np.asarray(guard.mounts, dtype=np.float64).reshape(-1, 3)
-        echo = (raw < guard.max_range - guard.max_range_margin) \
-            & (raw > self.p.min_range + self.p.touch)
+        guard, mounts = self.guard, self._mounts
+        echo = self._echoes(raw)
         found = []
         for lag in self.p.triangulate_lags:
             then = min(self._scans, key=lambda scan: abs(scan[0] - (time - lag)), default=None)
             if then is None or abs(then[0] - (time - lag)) > 0.06:
                 continue
             then_raw = then[3]
-            then_echo = (then_raw < guard.max_range - guard.max_range_margin) \
-                & (then_raw > self.p.min_range + self.p.touch)
+            then_echo = self._echoes(then_raw)
             found.append(triangulate_echoes(
                 mounts, raw, echo, carry_points(mounts[:, :2], then[1], pose), then_raw,
                 then_echo, cone_deg=guard.cone_deg, max_range=self.p.triangulate_range,
