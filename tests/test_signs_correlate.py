@@ -343,6 +343,25 @@ def _s(text, x, y, facing_deg=90.0, confidence=0.9, rng=2.0, view=0.0, tick=0, r
                     viewing_angle=view, robot_pose=robot)
 
 
+@pytest.mark.parametrize("late", [False, True])
+def test_a_reading_placed_short_of_its_wall_joins_its_plate_and_leaves_it_where_it_is(late):
+    """One reading of the plate on the wall at y = 5 was placed 2.2 m out from it, along
+    its line of sight (a plate bigger than the standard one, no wall on the map to put it
+    on): it says the same text, so it is the same plate, which stays where the other
+    three agree, whichever order they come in."""
+    smap = SignMap()
+    near = [_s("MAIL ROOM", 2.0 + dx, 5.0, 90) for dx in (-0.05, 0.0, 0.05)]
+    far = _s("MAIL ROOM", 1.9, 7.2, 100, rng=3.0)
+    for s in near + [far] if late else [far] + near:
+        smap.add(s)
+    (sign,) = smap.signs()
+    assert sign["sightings"] == 4
+    assert (sign["x"], sign["y"]) == pytest.approx((2.0, 5.0), abs=0.01)
+    # a plate saying something else there is another plate
+    smap.add(_s("OFFICE 12", 1.9, 7.2, 100))
+    assert len(smap.signs()) == 2
+
+
 def test_two_sightings_of_one_plate_merge_keeping_the_better_text():
     smap = SignMap()
     smap.add(_s("LIBRARY", 5.3, 7.0, -90, confidence=0.7))
@@ -479,8 +498,8 @@ def test_signs_and_rejected_split_on_confidence_and_text():
 
 def test_replace_poses_moves_signs_with_the_corrected_path():
     smap = SignMap()
-    # odometry drifted by 1.8 m between two passes: the same sign lands in two places
-    for tick, robot in ((10, (2.0, 5.7, 0.0)), (900, (3.8, 5.7, 0.0))):
+    # odometry drifted by 3.5 m between two passes: the same sign lands in two places
+    for tick, robot in ((10, (2.0, 5.7, 0.0)), (900, (5.5, 5.7, 0.0))):
         rel = (0.35, -0.6, -math.pi / 2)  # the plate on the right-hand wall
         x, y, f = compose(robot, rel)
         s = _s("MAIL ROOM", x, y, math.degrees(f), tick=tick, robot=np.array(robot))
@@ -489,8 +508,8 @@ def test_replace_poses_moves_signs_with_the_corrected_path():
     assert len(smap.signs()) == 2
 
     def corrected(tick: int, pose: np.ndarray) -> np.ndarray:
-        # the late pass really was 1.8 m further back; then rotate the whole frame by 90 deg
-        p = pose - ([1.8, 0.0, 0.0] if tick > 100 else 0.0)
+        # the late pass really was 3.5 m further back; then rotate the whole frame by 90 deg
+        p = pose - ([3.5, 0.0, 0.0] if tick > 100 else 0.0)
         c, s = 0.0, 1.0
         return np.array([c * p[0] - s * p[1], s * p[0] + c * p[1], p[2] + math.pi / 2])
 
@@ -501,7 +520,7 @@ def test_replace_poses_moves_signs_with_the_corrected_path():
         # the plate at (2.35, 5.1) facing -90 deg, rotated by +90 deg about the origin
         assert (sign["x"], sign["y"]) == pytest.approx((-5.1, 2.35), abs=1e-6)
         assert sign["facing"] == pytest.approx(0.0, abs=1e-6)
-    assert smap.sightings[1].original_pose == pytest.approx([3.8, 5.7, 0.0])
+    assert smap.sightings[1].original_pose == pytest.approx([5.5, 5.7, 0.0])
 
 
 def test_normalise_text():

@@ -285,7 +285,8 @@ class Correlate(Block):
     Each reading is placed from the robot's pose when it was captured, the
     head's pan and tilt and the plate's range; repeated sightings of one
     plate merge (readings within half a metre facing the same way are one
-    plate whatever they say), the plate named by the text its confident
+    plate whatever they say, readings of one text within 3 m too, placed
+    where most of them agree), the plate named by the text its confident
     readings' confidences add up most for; run.json ``disputed`` counts the
     plates whose confident readings disagreed.  Connect the offline map's handle
     to ``map`` and the signs are re-placed on its drift-corrected path, each
