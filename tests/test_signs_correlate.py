@@ -362,6 +362,20 @@ def test_a_reading_placed_short_of_its_wall_joins_its_plate_and_leaves_it_where_
     assert len(smap.signs()) == 2
 
 
+def test_every_reading_is_listed_with_the_plate_it_went_to(tmp_path):
+    from blocks.signs.correlate import SIGHTING_COLUMNS, sighting_rows, write_sightings_csv
+    smap = SignMap()
+    for s in (_s("MAIL ROOM", 2.0, 5.0), _s("OFFICE 12", 6.0, 5.0),
+              _s("MAIL ROOM", 2.1, 5.05, confidence=0.95), _s("LAB", 9.0, 5.0, confidence=0.3)):
+        smap.add(s)
+    rows = sighting_rows(smap)
+    assert [(r["plate"], r["text"], r["published"]) for r in rows] == [
+        (0, "MAIL ROOM", True), (1, "OFFICE 12", True), (0, "MAIL ROOM", True), (2, "LAB", False)]
+    path = write_sightings_csv(tmp_path / "signs" / "sightings.csv", rows)
+    lines = path.read_text().splitlines()
+    assert lines[0] == ",".join(SIGHTING_COLUMNS) and len(lines) == 5
+
+
 def test_two_sightings_of_one_plate_merge_keeping_the_better_text():
     smap = SignMap()
     smap.add(_s("LIBRARY", 5.3, 7.0, -90, confidence=0.7))

@@ -40,6 +40,11 @@ def test_the_signs_along_the_path_are_read_and_placed_without_false_signs(office
     seek = metrics["seek"]
     assert seek["captures"] == seek["stops"] - seek["rejected_not_sign"] - seek["timeouts"]
     assert metrics["reader"]["captures_read"] == seek["captures"]
+    # every reading placed is listed, with the plate it went to
+    import csv
+    rows = list(csv.DictReader((out / "signs/sightings.csv").open()))
+    assert len(rows) <= seek["captures"]
+    assert sum(r["published"] == "True" for r in rows) == signs["sightings"]
 
 
 def test_the_stops_add_little_to_the_exploration(office_run):

@@ -292,8 +292,9 @@ class Correlate(Block):
     to ``map`` and the signs are re-placed on its drift-corrected path, each
     plate where the camera's ray to it meets the map's wall (a plate's size
     is unknown, so the image alone says only how far a standard plate would
-    be), and drawn on it.  Writes ``DIR/signs.json`` and
-    ``DIR/maps/hybrid.png``; with ``world`` set, scores the signs against the world's into run.json (with
+    be), and drawn on it.  Writes ``DIR/signs.json``, every reading with the
+    plate it went to in ``DIR/signs/sightings.csv``, and ``DIR/maps/hybrid.png``;
+    with ``world`` set, scores the signs against the world's into run.json (with
     ``truth`` connected, also against the signs the run passed).
 
     The ``signs`` output is this block: ``current()`` gives the signs read so
@@ -374,8 +375,10 @@ class Correlate(Block):
         # plates read confidently as different texts: one text won the vote
         self.report("disputed", sum(c.disputed for c in self.signs.clusters))
         if self.ctx.out_dir is not None:
-            from .correlate import write_signs_json
+            from .correlate import sighting_rows, write_signs_json, write_sightings_csv
             write_signs_json(self.output_path("signs.json"), signs)
+            write_sightings_csv(self.output_path("signs/sightings.csv"),
+                                sighting_rows(self.signs, self.p.min_confidence))
             self._draw(signs)
         if self.p.world:
             self._score(signs)

@@ -50,8 +50,11 @@ __all__ = [
     "draw_hybrid_map",
     "normalise_text",
     "score_signs",
+    "SIGHTING_COLUMNS",
     "sighting_from_capture",
+    "sighting_rows",
     "write_signs_json",
+    "write_sightings_csv",
 ]
 
 #: Heading uncertainty (rad) assumed for the robot pose when weighting sightings: a
@@ -543,6 +546,51 @@ def write_signs_json(path: str | Path, signs: Sequence[Mapping[str, Any]],
         atomic_write_text(meta, json.dumps(to_jsonable(dict(extra)), indent=2) + "\n")
         written.append(meta)
     return written
+
+
+#: The columns of ``signs/sightings.csv`` (:func:`write_sightings_csv`).
+SIGHTING_COLUMNS = ("plate", "published", "tick", "time", "text", "raw_text", "confidence",
+                    "x", "y", "facing", "range", "viewing_angle", "scale", "on_wall",
+                    "robot_x", "robot_y", "robot_theta")
+
+
+def sighting_rows(smap: SignMap, min_confidence: float = 0.5) -> list[dict[str, Any]]:
+    """One record per reading: where it was placed, and the plate it went to.
+
+    Why: a plate placed wrong, or read twice as two, is explained by its
+    readings (each from a pose, a range and a size guess), which
+    ``signs.json`` merges away.  ``plate`` numbers the merged plates in
+    order of their first reading; ``published`` says whether the plate is
+    in ``signs.json``; ``on_wall`` whether the reading was put where its ray
+    meets the map's wall (:meth:`SignMap.place_on_walls`); angles in degrees.
+    """
+    plate_of = {id(s): k for k, c in enumerate(smap.clusters) for s in c.sightings}
+    published = {k for k, c in enumerate(smap.clusters) if smap._is_read(c, min_confidence)}
+    rows = []
+    for s in smap.sightings:
+        k = plate_of.get(id(s), -1)
+        pose = s.robot_pose if s.robot_pose is not None else np.full(3, math.nan)
+        rows.append({"plate": k, "published": k in published, "tick": s.tick,
+                     "time": round(s.time, 2), "text": s.text, "raw_text": s.raw_text,
+                     "confidence": round(float(s.confidence), 4), "x": round(s.x, 3),
+                     "y": round(s.y, 3), "facing": round(math.degrees(wrap(s.facing)), 1),
+                     "range": round(s.range, 3), "viewing_angle": round(math.degrees(s.viewing_angle), 1),
+                     "scale": round(s.scale, 3), "on_wall": s.scale != s.seen_scale,
+                     "robot_x": round(float(pose[0]), 3), "robot_y": round(float(pose[1]), 3),
+                     "robot_theta": round(math.degrees(float(pose[2])), 1)})
+    return rows
+
+
+def write_sightings_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:
+    """Write :func:`sighting_rows` as CSV (columns :data:`SIGHTING_COLUMNS`), atomically."""
+    import csv
+    import io
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=SIGHTING_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write_text(Path(path), buf.getvalue())
+    return Path(path)
 
 
 def _as_sign(obj: Any) -> tuple[str, float, float, float]:
