@@ -363,12 +363,12 @@ def test_a_reading_placed_short_of_its_wall_joins_its_plate_and_leaves_it_where_
 
 
 def test_every_reading_is_listed_with_the_plate_it_went_to(tmp_path):
-    from blocks.signs.correlate import SIGHTING_COLUMNS, sighting_rows, write_sightings_csv
+    from blocks.signs.correlate import SIGHTING_COLUMNS, write_sightings_csv
     smap = SignMap()
     for s in (_s("MAIL ROOM", 2.0, 5.0), _s("OFFICE 12", 6.0, 5.0),
               _s("MAIL ROOM", 2.1, 5.05, confidence=0.95), _s("LAB", 9.0, 5.0, confidence=0.3)):
         smap.add(s)
-    rows = sighting_rows(smap)
+    rows = smap.sighting_rows()
     assert [(r["plate"], r["text"], r["published"]) for r in rows] == [
         (0, "MAIL ROOM", True), (1, "OFFICE 12", True), (0, "MAIL ROOM", True), (2, "LAB", False)]
     path = write_sightings_csv(tmp_path / "signs" / "sightings.csv", rows)

@@ -375,10 +375,10 @@ class Correlate(Block):
         # plates read confidently as different texts: one text won the vote
         self.report("disputed", sum(c.disputed for c in self.signs.clusters))
         if self.ctx.out_dir is not None:
-            from .correlate import sighting_rows, write_signs_json, write_sightings_csv
+            from .correlate import write_signs_json, write_sightings_csv
             write_signs_json(self.output_path("signs.json"), signs)
             write_sightings_csv(self.output_path("signs/sightings.csv"),
-                                sighting_rows(self.signs, self.p.min_confidence))
+                                self.signs.sighting_rows(self.p.min_confidence))
             self._draw(signs)
         if self.p.world:
             self._score(signs)

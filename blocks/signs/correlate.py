@@ -52,7 +52,6 @@ __all__ = [
     "score_signs",
     "SIGHTING_COLUMNS",
     "sighting_from_capture",
-    "sighting_rows",
     "write_signs_json",
     "write_sightings_csv",
 ]
@@ -111,6 +110,8 @@ class Sighting:
     seen_scale : float
         The size the views on the way to the plate measured (the capture's
         ``scale``): where the map has no wall for it, the plate keeps it.
+    on_wall : bool
+        Whether :meth:`SignMap.place_on_walls` measured ``scale`` by the map's wall.
     """
 
     text: str
@@ -131,6 +132,7 @@ class Sighting:
     cam_rel: tuple[float, float, float] | None = None
     scale: float = 1.0
     seen_scale: float = 1.0
+    on_wall: bool = False
 
     def __post_init__(self) -> None:
         self.text = normalise_text(self.text)
@@ -472,7 +474,7 @@ class SignMap:
             s.scale = 1.0
             s.place(s.robot_pose)
             cx, cy, _ = compose(s.robot_pose, s.cam_rel)
-            s.scale = s.seen_scale  # unless a wall says otherwise
+            s.scale, s.on_wall = s.seen_scale, False  # unless a wall says otherwise
             dx, dy = s.x - cx, s.y - cy
             standard = math.hypot(dx, dy)
             if standard < 1e-6:
@@ -482,6 +484,7 @@ class SignMap:
             hit = None if band is None else band[0] + min(band[1] - band[0], self.WALL_BAND) / 2
             if hit is not None and hit >= scales[0] * standard:  # the band's middle
                 s.scale = min(hit, scales[1] * standard) / standard
+                s.on_wall = True
                 placed += 1
             s.place(s.robot_pose)
         self.rebuild()
@@ -500,6 +503,33 @@ class SignMap:
         """
         out = [c.as_dict() for c in self.clusters if self._is_read(c, min_confidence)]
         return sorted(out, key=lambda d: (d["text"], d["x"], d["y"]))
+
+    def sighting_rows(self, min_confidence: float = 0.5) -> list[dict[str, Any]]:
+        """One record per reading: where it was placed, and the plate it went to.
+
+        Why: a plate placed wrong, or read twice as two, is explained by its
+        readings (each from a pose, a range and a size guess), which
+        :meth:`signs` merges away.  ``plate`` numbers the merged plates in
+        order of their first reading; ``published`` says whether the plate is
+        among :meth:`signs`; ``on_wall`` whether the reading was put where its
+        ray meets the map's wall (:meth:`place_on_walls`); angles in degrees.
+        """
+        plate_of = {id(s): k for k, c in enumerate(self.clusters) for s in c.sightings}
+        published = {k for k, c in enumerate(self.clusters) if self._is_read(c, min_confidence)}
+        rows = []
+        for s in self._sightings:
+            k = plate_of.get(id(s), -1)
+            pose = s.robot_pose if s.robot_pose is not None else np.full(3, math.nan)
+            rows.append({"plate": k, "published": k in published, "tick": s.tick,
+                         "time": round(s.time, 2), "text": s.text, "raw_text": s.raw_text,
+                         "confidence": round(float(s.confidence), 4), "x": round(s.x, 3),
+                         "y": round(s.y, 3), "facing": round(math.degrees(wrap(s.facing)), 1),
+                         "range": round(s.range, 3),
+                         "viewing_angle": round(math.degrees(s.viewing_angle), 1),
+                         "scale": round(s.scale, 3), "on_wall": s.on_wall,
+                         "robot_x": round(float(pose[0]), 3), "robot_y": round(float(pose[1]), 3),
+                         "robot_theta": round(math.degrees(float(pose[2])), 1)})
+        return rows
 
     def rejected(self, min_confidence: float = 0.5) -> list[dict[str, Any]]:
         """The plates left out of :meth:`signs`, with why and every raw text read."""
@@ -554,35 +584,8 @@ SIGHTING_COLUMNS = ("plate", "published", "tick", "time", "text", "raw_text", "c
                     "robot_x", "robot_y", "robot_theta")
 
 
-def sighting_rows(smap: SignMap, min_confidence: float = 0.5) -> list[dict[str, Any]]:
-    """One record per reading: where it was placed, and the plate it went to.
-
-    Why: a plate placed wrong, or read twice as two, is explained by its
-    readings (each from a pose, a range and a size guess), which
-    ``signs.json`` merges away.  ``plate`` numbers the merged plates in
-    order of their first reading; ``published`` says whether the plate is
-    in ``signs.json``; ``on_wall`` whether the reading was put where its ray
-    meets the map's wall (:meth:`SignMap.place_on_walls`); angles in degrees.
-    """
-    plate_of = {id(s): k for k, c in enumerate(smap.clusters) for s in c.sightings}
-    published = {k for k, c in enumerate(smap.clusters) if smap._is_read(c, min_confidence)}
-    rows = []
-    for s in smap.sightings:
-        k = plate_of.get(id(s), -1)
-        pose = s.robot_pose if s.robot_pose is not None else np.full(3, math.nan)
-        rows.append({"plate": k, "published": k in published, "tick": s.tick,
-                     "time": round(s.time, 2), "text": s.text, "raw_text": s.raw_text,
-                     "confidence": round(float(s.confidence), 4), "x": round(s.x, 3),
-                     "y": round(s.y, 3), "facing": round(math.degrees(wrap(s.facing)), 1),
-                     "range": round(s.range, 3), "viewing_angle": round(math.degrees(s.viewing_angle), 1),
-                     "scale": round(s.scale, 3), "on_wall": s.scale != s.seen_scale,
-                     "robot_x": round(float(pose[0]), 3), "robot_y": round(float(pose[1]), 3),
-                     "robot_theta": round(math.degrees(float(pose[2])), 1)})
-    return rows
-
-
 def write_sightings_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:
-    """Write :func:`sighting_rows` as CSV (columns :data:`SIGHTING_COLUMNS`), atomically."""
+    """Write :meth:`SignMap.sighting_rows` as CSV (columns :data:`SIGHTING_COLUMNS`), atomically."""
     import csv
     import io
     buf = io.StringIO()
