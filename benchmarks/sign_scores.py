@@ -7,6 +7,7 @@ README.md and docs/signs.md): signs along the explored path, found, read
 exactly, position error, false signs, and the time the stops added.
 
     python benchmarks/sign_scores.py [--worlds office,hospital] [--out runs/sign_scores] [--json F]
+        [--set NAME=VALUE ...]  (graph parameters of the main pipeline's runs)
 """
 from __future__ import annotations
 
@@ -24,10 +25,11 @@ ROOT = Path(__file__).resolve().parents[1]
 WORLDS = ("office", "hospital")
 
 
-def run(graph: str, world: str, out: Path, seed: int) -> dict:
+def run(graph: str, world: str, out: Path, seed: int, sets: list[str] = ()) -> dict:
     semmap = Path(sys.executable).with_name("semmap")
     subprocess.run([str(semmap), "run", str(ROOT / "graphs" / graph), "--world", world,
-                    "--seed", str(seed), "--out", str(out), "--quiet"],
+                    "--seed", str(seed), "--out", str(out), "--quiet",
+                    *(arg for value in sets for arg in ("--set", value))],
                    check=True, stdout=subprocess.DEVNULL)
     return json.loads((out / "run.json").read_text())["metrics"]
 
@@ -42,9 +44,10 @@ def perimeter_end(metrics: dict) -> tuple[float | None, str]:
     return explorer.get("started"), explorer.get("start_reason", "not ended")
 
 
-def measure(world: str, out: Path, seed: int = 0) -> dict:
-    """One world's sign figures (see the module docstring)."""
-    with_signs = run("semantic_mapping.yaml", world, out / f"{world}_signs", seed)
+def measure(world: str, out: Path, seed: int = 0, sets: list[str] = ()) -> dict:
+    """One world's sign figures (see the module docstring); ``sets`` are graph
+    parameters (``NAME=VALUE``) of the main pipeline's run."""
+    with_signs = run("semantic_mapping.yaml", world, out / f"{world}_signs", seed, sets)
     without = run("mapping.yaml", world, out / f"{world}_nosigns", seed)
     signs, seek = with_signs["signs"], with_signs["seek"]
     t_with, how = perimeter_end(with_signs)
@@ -72,13 +75,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "runs/sign_scores")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="a graph parameter of the main pipeline's runs (repeatable)")
     args = parser.parse_args(argv)
     rows = []
     print("| world | signs along the path | found | read exactly | position error mean / max "
           "| false signs | stopped | perimeter loop with stops and room visits / without |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for world in args.worlds.split(","):
-        r = measure(world, args.out, args.seed)
+        r = measure(world, args.out, args.seed, args.set)
         rows.append(r)
         print(f"| {world} | {r['signs_along_path']} | {r['found']} | {r['read_exactly']} "
               f"({100 * r['read_exactly_share']:.0f} %) | {r['position_error_mean_m']:.2f} / "

@@ -219,6 +219,37 @@ def test_a_right_turn_round_a_wall_end_clips_it_unless_monitored(tmp_path, monit
     assert (robot.collisions > 0) == touches
 
 
+#: The sonars of gen:office:10 at 9.8 s, in the robot file's order: the follower turning
+#: left from a wall it meets 60 degrees off its heading, 0.12 m ahead of the front-right
+#: corner; the front sonars, at a grazing angle, hear nothing (the run's first contact).
+OBLIQUE_WALL = [4.0, 4.0, 4.0, 0.77, 0.15, 0.15, 0.19, 0.27, 0.3, 0.6, 4.0, 3.58, 3.31, 1.13,
+                0.92, 0.53]
+
+
+@pytest.mark.parametrize("wall_extent, stopped", [(0.0, False), (0.05, True)])
+def test_a_wall_met_obliquely_is_a_wall_across_the_beams_not_points_beside_the_path(
+        wall_extent, stopped):
+    """Each echo's arc has a point just outside the body swept by the follower's gentle left
+    turn, so the arc rule lets it on into the wall; the walls across the beams at those
+    points (the sonar hears a wall square on) stop it in time."""
+    arcs = guard().echo_arcs(np.array(OBLIQUE_WALL))
+    t = guard().collision_time(arcs, 0.42, 0.45, horizon=0.6, wall_extent=wall_extent)
+    assert (t < 0.6) == stopped
+
+
+def test_a_monitor_on_a_shared_memory_takes_its_walls_from_the_memory():
+    """What an echo stands for is the memory's: the monitor and the behaviours checking on
+    one memory cannot disagree about it."""
+    shared = EchoMemory(guard(), MonitorParams(wall_extent=0.05))
+    monitor = CollisionMonitor(guard(), MonitorParams(), echoes=shared)
+    shared.add(0.0, np.zeros(3), np.array(OBLIQUE_WALL))
+    v, w = monitor.step(0.0, np.zeros(3), np.array(OBLIQUE_WALL), 0.42, 0.45)
+    assert monitor.scale < 1.0 and shared.collision_time(np.zeros(3), 0.42, 0.45) < 0.6
+    alone = CollisionMonitor(guard(), MonitorParams())
+    alone.step(0.0, np.zeros(3), np.array(OBLIQUE_WALL), 0.42, 0.45)
+    assert alone.scale == 1.0
+
+
 # ---- echoes located by their closing rate ----------------------------------------------------------
 @pytest.mark.parametrize("triangulate", [False, True])
 def test_an_echo_closing_as_fast_as_the_robot_drives_is_in_its_way(triangulate):
@@ -239,10 +270,13 @@ def test_an_echo_closing_as_fast_as_the_robot_drives_is_in_its_way(triangulate):
         assert t == math.inf
 
 
-def test_an_echo_beside_the_path_stays_beside_it():
+@pytest.mark.parametrize("triangulate, wall_extent", [(True, 0.0), (False, 0.05)])
+def test_an_echo_beside_the_path_stays_beside_it(triangulate, wall_extent):
     """A door jamb 0.2 m right of the body's side closes slower than the robot drives:
-    located beside the path, it does not stop a robot driving through the door."""
-    memory = EchoMemory(guard(), MonitorParams(triangulate=True))
+    located beside the path, it does not stop a robot driving through the door (nor does
+    the wall across the beam that each point of its arcs may stand for)."""
+    memory = EchoMemory(guard(), MonitorParams(triangulate=triangulate,
+                                               wall_extent=wall_extent))
     jamb = np.array([1.0, -0.45])
     for k in range(12):
         pose = np.array([0.04 * k, 0.0, 0.0])

@@ -34,9 +34,10 @@ def test_the_behaviours_judge_motions_on_the_monitors_memory():
     what it would stop: one memory, set by the graph parameters, feeds all three, so
     they cannot disagree."""
     graph = load_graph(ROOT / "graphs" / "semantic_mapping.yaml",
-                       ["echo_memory=3", "near_echo_memory=12"])
+                       ["echo_memory=3", "near_echo_memory=12", "echo_walls=0.05"])
     memory = graph.nodes["echoes"]
     assert memory.type_name == "navigate.echo_memory"
     assert memory.params["memory"] == 3.0 and memory.params["near_memory"] == 12.0
+    assert memory.params["wall_extent"] == 0.05
     fed = {(e.dst.node, e.dst.port) for e in graph.edges if e.src.node == "echoes"}
     assert fed == {("monitor", "echoes"), ("explorer", "echoes"), ("rooms", "echoes")}

@@ -487,6 +487,11 @@ ECHO_MEMORY_PARAMS = {
         "triangulate": Param(bool, False, "also locate near echoes by how fast their ranges "
                                           "close as the robot drives "
                                           "(navigate.sonar_triangulation)"),
+        "wall_extent": Param(float, 0.0, "each point of an echo's arc also stands for a wall "
+                                         "through it across the beam, this long either way "
+                                         "(a wall met obliquely ahead echoes only at a "
+                                         "diagonal sonar's cone edge, beside the body's path); "
+                                         "0: points alone", unit="m", min=0.0, max=0.5),
 }
 
 
@@ -526,7 +531,8 @@ class EchoMemoryBlock(Block):
         self._params = MonitorParams(memory=self.p.memory, near_memory=self.p.near_memory,
                                      near_range=self.p.near_range,
                                      min_range=spec.sonar.min_range,
-                                     triangulate=self.p.triangulate)
+                                     triangulate=self.p.triangulate,
+                                     wall_extent=self.p.wall_extent)
 
     def reset(self) -> None:
         from .collision_monitor import EchoMemory
@@ -585,7 +591,8 @@ class CollisionMonitorBlock(Block):
         spec = load_robot(self.p.robot)
         self._guard = SonarGuard.for_robot(spec)
         self._params = MonitorParams(time_before_collision=self.p.time_before_collision,
-                                     margin=self.p.margin, memory=self.p.memory,
+                                     margin=self.p.margin, wall_extent=self.p.wall_extent,
+                                     memory=self.p.memory,
                                      near_memory=self.p.near_memory,
                                      near_range=self.p.near_range,
                                      min_range=spec.sonar.min_range,

@@ -52,6 +52,14 @@ class MonitorParams:
         (s) is scaled so that it would take this long.
     margin
         The body is grown by this much (m) on every side for the check.
+    wall_extent
+        Each point of an echo's arc also stands for a wall through it across
+        the beam, this long (m) either way
+        (:func:`~blocks.navigate.guard.wall_hypotheses`): a wall met obliquely
+        ahead echoes only at the edge of a diagonal sonar's cone, beside the
+        body, and crosses its path beyond.  0 (the default): points alone.
+        A property of the memory (what its echoes stand for): a monitor or a
+        behaviour checking on a shared memory uses the memory's.
     memory
         Echoes of the last so many seconds count, not only this scan's.
     min_range
@@ -85,6 +93,7 @@ class MonitorParams:
 
     time_before_collision: float = 0.6
     margin: float = 0.03
+    wall_extent: float = 0.0
     memory: float = 1.0
     step: float = 0.05
     min_range: float = 0.1
@@ -343,7 +352,8 @@ class EchoMemory:
         """
         c = checks or self.p
         return self.guard.collision_time(self.arcs(pose), v, w, c.time_before_collision,
-                                         step=c.step, margin=c.margin)
+                                         step=c.step, margin=c.margin,
+                                         wall_extent=self.p.wall_extent)
 
     def stops(self, pose: np.ndarray, v: float, w: float,
               checks: MonitorParams | None = None) -> bool:
@@ -372,7 +382,8 @@ class EchoMemory:
         within the horizon (of ``checks``, as :meth:`collision_time`)."""
         c = checks or self.p
         return self.guard.collision_time(arcs, v, w, c.time_before_collision,
-                                         step=c.step, margin=c.margin) == math.inf
+                                         step=c.step, margin=c.margin,
+                                         wall_extent=self.p.wall_extent) == math.inf
 
 
 class CollisionMonitor:
@@ -442,7 +453,8 @@ class CollisionMonitor:
                 self.scale = 1.0
                 return self._recovery
         self._recovery = None
-        t = self.guard.collision_time(arcs, v, w, horizon, step=self.p.step, margin=self.p.margin)
+        t = self.guard.collision_time(arcs, v, w, horizon, step=self.p.step, margin=self.p.margin,
+                                      wall_extent=self.echoes.p.wall_extent)
         self.scale = 1.0 if t >= horizon else (0.0 if t <= self.p.step else t / horizon)
         if self.scale < 1.0:
             self.limited_ticks += 1

@@ -31,7 +31,38 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SonarGuard", "swept_poses"]
+__all__ = ["SonarGuard", "swept_poses", "wall_hypotheses"]
+
+
+def wall_hypotheses(arcs: np.ndarray, extent: float, points: int = 5) -> np.ndarray:
+    """(E, S, P, 2) for each arc point, a wall through it tangent to the arc, ``extent`` (m)
+    either way.
+
+    Why: a sonar hears a flat wall where its beam meets it square on, so an echo
+    at a point of the arc means a wall through that point across the beam,
+    which is the arc's own tangent there.  A wall met obliquely ahead echoes
+    only in a diagonal sonar, at its cone's edge beside the body, and the
+    point itself lies just outside the swept footprint while the wall
+    through it crosses the body's path.  The tangent is taken from the arc's
+    neighbouring points, so arcs carried into another frame keep it; an arc
+    shrunk to one point (a touching echo, a triangulated point) stays a point.
+
+    Examples
+    --------
+    >>> arc = np.array([[[1.0, -0.1], [1.0, 0.0], [1.0, 0.1]]])  # an echo square ahead
+    >>> wall_hypotheses(arc, 0.2, points=3)[0, 1].round(2).tolist()
+    [[1.0, -0.2], [1.0, 0.0], [1.0, 0.2]]
+    """
+    arcs = np.asarray(arcs, dtype=np.float64)
+    if extent <= 0.0 or arcs.shape[1] < 2:
+        return arcs[:, :, None, :]
+    ahead = np.concatenate([arcs[:, 1:], arcs[:, -1:]], axis=1)
+    behind = np.concatenate([arcs[:, :1], arcs[:, :-1]], axis=1)
+    tangent = ahead - behind
+    length = np.hypot(tangent[..., 0], tangent[..., 1])[..., None]
+    tangent = np.divide(tangent, length, out=np.zeros_like(tangent), where=length > 1e-9)
+    offsets = np.linspace(-extent, extent, points)
+    return arcs[:, :, None, :] + offsets[None, None, :, None] * tangent[:, :, None, :]
 
 
 def swept_poses(v: float, w: float, times: np.ndarray) -> np.ndarray:
@@ -114,7 +145,8 @@ class SonarGuard:
         return self.echo_points(ranges).reshape(-1, max(self.arc_samples, 1), 2)
 
     def collision_time(self, arcs: np.ndarray, v: float, w: float, horizon: float,
-                       step: float = 0.05, margin: float = 0.03) -> float:
+                       step: float = 0.05, margin: float = 0.03,
+                       wall_extent: float = 0.0) -> float:
         """Seconds until the body, driving at (v, w), covers a whole echo arc; inf if not
         within ``horizon``.
 
@@ -129,6 +161,10 @@ class SonarGuard:
             How far ahead (s) the body is swept, and how finely.
         margin
             The body is grown by this much (m) on every side.
+        wall_extent
+            Each point of an arc stands for a wall through it, tangent to the
+            arc, this long (m) either way (see :func:`wall_hypotheses`); 0: the
+            point alone.
 
         Examples
         --------
@@ -144,16 +180,17 @@ class SonarGuard:
             return math.inf
         times = np.arange(0, int(math.ceil(horizon / step - 1e-9)) + 1) * step
         poses = swept_poses(v, w, times)
-        dx = arcs[None, :, :, 0] - poses[:, 0, None, None]
-        dy = arcs[None, :, :, 1] - poses[:, 1, None, None]
-        c, s = np.cos(poses[:, 2])[:, None, None], np.sin(poses[:, 2])[:, None, None]
-        # signed distance of each sample from the body (negative inside); an arc is as far
-        # as its farthest sample (the echo is somewhere on it)
+        walls = wall_hypotheses(arcs, wall_extent)  # (E, S, P, 2)
+        dx = walls[None, ..., 0] - poses[:, 0, None, None, None]
+        dy = walls[None, ..., 1] - poses[:, 1, None, None, None]
+        c, s = np.cos(poses[:, 2])[:, None, None, None], np.sin(poses[:, 2])[:, None, None, None]
+        # signed distance of each point from the body (negative inside); a wall is as near as
+        # its nearest point, an arc as far as its farthest wall (the echo is on one of them)
         qx = np.abs(c * dx + s * dy) - self.length / 2
         qy = np.abs(-s * dx + c * dy) - self.width / 2
         gap = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0)) + np.minimum(
             np.maximum(qx, qy), 0.0)
-        arc_gap = gap.max(axis=2)  # (T, E)
+        arc_gap = gap.min(axis=3).max(axis=2)  # (T, E)
         # a hit: within the margin and closer than now (moving along or away from an echo
         # already within the margin is no collision)
         hit = ((arc_gap[1:] <= margin) & (arc_gap[1:] < arc_gap[0] - 1e-4)).any(axis=1)
