@@ -15,6 +15,7 @@ import argparse
 import json
 import subprocess
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -25,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 WORLDS = ("office", "hospital")
 
 
-def run(graph: str, world: str, out: Path, seed: int, sets: list[str] = ()) -> dict:
+def run(graph: str, world: str, out: Path, seed: int, sets: Sequence[str] = ()) -> dict:
     semmap = Path(sys.executable).with_name("semmap")
     subprocess.run([str(semmap), "run", str(ROOT / "graphs" / graph), "--world", world,
                     "--seed", str(seed), "--out", str(out), "--quiet",
@@ -44,7 +45,7 @@ def perimeter_end(metrics: dict) -> tuple[float | None, str]:
     return explorer.get("started"), explorer.get("start_reason", "not ended")
 
 
-def measure(world: str, out: Path, seed: int = 0, sets: list[str] = ()) -> dict:
+def measure(world: str, out: Path, seed: int = 0, sets: Sequence[str] = ()) -> dict:
     """One world's sign figures (see the module docstring); ``sets`` are graph
     parameters (``NAME=VALUE``) of the main pipeline's run."""
     with_signs = run("semantic_mapping.yaml", world, out / f"{world}_signs", seed, sets)

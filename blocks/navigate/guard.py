@@ -190,7 +190,8 @@ class SonarGuard:
         qy = np.abs(-s * dx + c * dy) - self.width / 2
         gap = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0)) + np.minimum(
             np.maximum(qx, qy), 0.0)
-        arc_gap = gap.min(axis=3).max(axis=2)  # (T, E)
+        # (T, E); with points alone the walls' axis has one point: a view, no reduction
+        arc_gap = (gap.min(axis=3) if gap.shape[3] > 1 else gap[..., 0]).max(axis=2)
         # a hit: within the margin and closer than now (moving along or away from an echo
         # already within the margin is no collision)
         hit = ((arc_gap[1:] <= margin) & (arc_gap[1:] < arc_gap[0] - 1e-4)).any(axis=1)
