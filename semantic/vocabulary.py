@@ -163,6 +163,12 @@ class Vocabulary:
         hyphens (``"MAILROOM"`` -> ``"MAIL ROOM"``), or None: one canonical text per sign."""
         return self._first_spelling.get(compact(text))
 
+    def may_lack_slot(self, text: str) -> bool:
+        """Whether ``text`` is a pattern's words without its slot ("MEETING ROOM" of
+        ``MEETING ROOM {id}``): a reading of it may have lost the plate's number."""
+        key = compact(text)
+        return any(compact(p.literal) == key for p in self.patterns)
+
     def place_class(self, text: str) -> str | None:
         """The place class a sign text names exactly, or None.
 

@@ -103,6 +103,19 @@ def test_a_label_below_the_camera_is_no_door_sign():
     assert len(detect_outlined_plates(img, model, anywhere)) == 1
 
 
+def test_a_white_label_below_the_camera_is_no_door_sign_either():
+    """A parcel's white address label ("TO: LAB") is the white-plate detector's kind of
+    plate, but it lies where no door sign hangs; the white detector alone still finds it."""
+    low = Sign("TO: LAB", WALL_X - HALF, 0.0, math.pi, width=0.3, height=0.12, z=0.35)
+    img, model, truth = frame(room(low), low, 1.6, 10)
+    assert len(truth) == 1
+    assert len(detect_plates(img, model)) == 1
+    assert detect_any_plates(img, model) == []
+    high = dataclasses.replace(low, z=1.4)
+    img, model, _ = frame(room(high), high, 1.6, 10)
+    assert len(detect_any_plates(img, model)) == 1
+
+
 @pytest.mark.parametrize("name", ["office", "hospital"])
 def test_sign_free_views_of_the_worlds_give_no_outlined_plate(name):
     """Bare walls, doorways, corners, floor and ceiling: no plate of any look."""

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from blocks.core.errors import SemmapError
-from blocks.signs.read import ReaderError, SignReader, plate_size, rectify_plate
-from blocks.signs.text import match_vocabulary, normalise
+from blocks.signs.read import OcrResult, ReaderError, SignReader, plate_size, rectify_plate
+from blocks.signs.text import match_reading, match_vocabulary, normalise, truncated
 from semantic.vocabulary import VocabularyError, load_vocabulary
 from sim2d.camera import CameraSpec, focal_length, render, sign_plate_image, visible_signs
 from sim2d.world import Sign, load_world, make_world
@@ -147,6 +147,78 @@ def test_no_match_for_garbage_unknown_words_or_short_misreads(vocab):
         assert match_vocabulary(text, vocab) is None, text
     assert match_vocabulary("ICU", vocab).text == "ICU"
     assert match_vocabulary("LIBRARV", vocab, min_score=0.9) is None  # the threshold holds
+
+
+@pytest.mark.parametrize("raw, cut", [
+    ("CLASSRO", True),  # the end of the plate cut off: its number may have gone with it
+    ("TROOM", True),  # IT ROOM hidden in part behind a wall's edge
+    ("CONSULTING ROO", True),
+    ("ONSULTING ROOM 2", True),  # a number read, but the plate's start is lost
+    ("MEETINGROO3", False),  # a letter missing inside: the OCR's slip, not a cut
+    ("MAILROOM", False),
+    ("MEETING ROOM", False),
+    ("LIBRARV", False),
+    ("WARDD", False),
+])
+def test_a_reading_cut_at_an_end_is_told_from_a_misspelt_one(vocab, raw, cut):
+    assert truncated(raw, match_reading(raw, vocab)) is cut
+
+
+def test_a_patterns_words_alone_may_lack_the_slot(vocab):
+    assert vocab.may_lack_slot("MEETING ROOM") and vocab.may_lack_slot("office")
+    assert not vocab.may_lack_slot("LIBRARY") and not vocab.may_lack_slot("MEETING ROOM 2")
+
+
+class ScriptedReader(SignReader):
+    """A reader whose OCR reads each view as scripted: ``{view: (text, score)}``."""
+
+    def __init__(self, vocabulary, script):
+        super().__init__(vocabulary)
+        self.script = script
+
+    def _crops(self, image, corners):
+        return [(name, lambda name=name: name) for name in self.views]
+
+    def ocr(self, image, detect=True):
+        text, score = self.script[image]
+        return OcrResult(text, score, 1, None)
+
+
+def scripted_read(vocab, **script):
+    return ScriptedReader(vocab, script).read(np.zeros((20, 60, 3), np.uint8))
+
+
+def test_a_confident_reading_missing_its_number_asks_the_other_views(vocab):
+    """The line view loses a small trailing digit at the crop's edge ("MEETING ROOM" of a
+    MEETING ROOM 3 plate); the rectified view, with its margin, reads it."""
+    r = scripted_read(vocab, line=("MEETING ROOM", 0.95), rectified=("MEETING ROOM3", 0.9),
+                      bbox=("MEETINGROOM", 0.9))
+    assert r.text == "MEETING ROOM 3" and r.confidence > 0.75
+    assert r.extra["views_tried"] == ["line", "rectified"]
+    whole = scripted_read(vocab, line=("LIBRARY", 0.95), rectified=("LIBRARV", 0.9),
+                          bbox=("LIBRARY", 0.9))
+    assert whole.text == "LIBRARY" and whole.extra["views_tried"] == ["line"]
+
+
+def test_a_slot_read_as_a_look_alike_letter_must_agree_with_the_other_views(vocab):
+    r = scripted_read(vocab, line=("MEETING ROOM S", 0.95), rectified=("MEETING ROOM 5", 0.9),
+                      bbox=("MEETING ROOM5", 0.9))
+    assert r.confidence < 0.5  # S or 5: the views disagree, and the reading is not trusted
+    ward = scripted_read(vocab, line=("WARD B", 0.95), rectified=("WARD B", 0.9),
+                         bbox=("WARDB", 0.9))
+    assert ward.text == "WARD B" and ward.confidence > 0.75
+
+
+def test_a_plate_whose_text_is_cut_off_is_not_read(vocab):
+    """Where the rectified plate's text stops short, the quad holds part of a plate:
+    no view's reading of it is trusted, however whole it looks."""
+    r = scripted_read(vocab, line=("CLASSRO", 0.95), rectified=("CLASSRO", 0.9),
+                      bbox=("CLASSROOM", 0.95))
+    assert r.text == "" and r.confidence == 0.0 and r.extra["cut"]
+    # the loose bbox view dropping a slanted plate's last letter is no cut
+    s = scripted_read(vocab, line=("STAIRWAY", 0.6), rectified=("STAIRWAY", 0.6),
+                      bbox=("STAIRWA", 0.9))
+    assert s.text == "STAIRWAY" and not s.extra["cut"]
 
 
 # ---- rectification --------------------------------------------------------------------------

@@ -28,7 +28,9 @@ text. So this detector works on contrast, not on colour:
 
 :func:`detect_any_plates` runs both detectors and keeps the white-plate
 detector's detections wherever both find a plate, so frames of the standard
-plate give the same detections as before.
+plate give the same detections as before; the white detector's plates must
+hang where door signs do too (4.), unless the frame's border cuts them: a
+parcel's white address label ("TO: LAB") was read as the sign IT LAB.
 
 The range of a detection still assumes the standard plate height (0.2 m):
 a plate of another size is placed nearer or farther in proportion. Plates
@@ -238,8 +240,14 @@ def detect_any_plates(image: np.ndarray, camera: CameraModel,
                       any_params: AnyLookParams = DEFAULT_ANY,
                       plate_height: float = PLATE_HEIGHT) -> list[PlateDetection]:
     """Both detectors: the white-plate detector's plates, and the outlined plates of any
-    look that overlap none of them (box IoU below 0.3); best score first."""
-    plates = white.detect_plates(image, camera, params, plate_height)
+    look that overlap none of them (box IoU below 0.3); best score first.
+
+    Plates of any size hang where door signs do: a white plate whole in the frame
+    whose centre is less than ``min_elevation`` of its heights above the horizon is
+    a label lower down (a parcel's address label, "TO: LAB"), as for outlined plates.
+    """
+    plates = [p for p in white.detect_plates(image, camera, params, plate_height)
+              if p.clipped or _elevation(p.corners, camera) >= any_params.min_elevation]
     more = [d for d in detect_outlined_plates(image, camera, any_params, plate_height)
             if all(white.box_iou(d.bbox, p.bbox) < 0.3 for p in plates)]
     if not more:

@@ -7,7 +7,9 @@ recognition, and detection when needed; ONNX models shipped inside the
 ``rapidocr_onnxruntime`` wheel: nothing is downloaded), cleans the string up
 and matches it against the place vocabulary (:mod:`blocks.signs.text`).
 
-Views, in order, until one is confident enough:
+Views, in order, until one is confident enough and complete (a pattern's words
+alone, "MEETING ROOM", may have lost the plate's number at the crop's edge, and a
+slot read as a look-alike letter, "ROOM S", may be a digit: both ask the next views):
 
 ``line``
     The plate inside its border, grey and contrast-stretched, given to the
@@ -26,13 +28,18 @@ plate's legibility (its effective size in pixels, :func:`plate_size`) and cut
 when two views read different texts. A clean read of a known text scores
 near 1, a fuzzy correction ("LIBRARV" -> "LIBRARY") costs in proportion, and a
 reading matching nothing scores 0: the correlation stage weighs readings by it.
+A rectified view whose text stops short of its match's ("CLASSRO" of CLASSROOM,
+"TROOM" of IT ROOM: :func:`~blocks.signs.text.truncated`) shows a plate cut by
+the frame or hidden in part behind a wall, and the whole reading is dropped:
+what the other views make of the rest is no better, and a cut plate would be a
+false sign (its number, or its first word, lost).
 """
 from __future__ import annotations
 
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +49,7 @@ import numpy as np
 from blocks.core.errors import SemmapError
 from semantic.vocabulary import Vocabulary, load_vocabulary
 
-from .text import MIN_SCORE, Match, match_reading
+from .text import LOOKALIKE_LETTERS, MIN_SCORE, Match, match_reading, truncated
 from .types import PLATE_HEIGHT, PLATE_WIDTH, Reading
 
 __all__ = ["OCR_OPTIONS", "VIEWS", "OcrResult", "ReaderError", "SignReader", "bbox_crop",
@@ -224,6 +231,7 @@ class _View:
     guess: Match | None  # the closest vocabulary text, accepted or not
     matched: Match | None  # the accepted one
     confidence: float
+    cut: bool = False  # the text read is its match's with an end cut off ("CLASSRO")
 
 
 class SignReader:
@@ -371,14 +379,19 @@ class SignReader:
             res = self.ocr(crop, detect=name != "line")
             ocr_ms += (time.perf_counter() - t0) * 1e3
             guess = match_reading(res.text, vocab)
+            # the rectified views hold the plate itself, so where their text stops the plate
+            # stops (the loose, unwarped bbox view may drop a slanted plate's edge letter)
+            cut = name != "bbox" and guess is not None and guess.score >= self.min_score \
+                and truncated(res.text, guess)
             matched = guess if guess is not None and guess.score >= self.min_score else None
             confidence = 0.0
             if matched is not None:
                 # the slot must be read exactly: its least sure glyph bounds the confidence
                 slot = res.slot_probability(matched)
                 confidence = matched.score * (res.score if slot is None else min(res.score, slot))
-            views.append(_View(name, res.text, res.score, res.boxes, guess, matched, confidence))
-            if confidence >= self.good_enough:
+            views.append(_View(name, res.text, res.score, res.boxes, guess, matched, confidence,
+                               cut))
+            if confidence >= self.good_enough and not _worth_a_second_view(matched, vocab):
                 break
         tried = [v.name for v in views]
         # a view whose text is the start of another's ("WARD" of "WARD D") missed a box:
@@ -388,6 +401,10 @@ class SignReader:
             len(t) > len(v.matched.text.split()) and t[:len(v.matched.text.split())]
             == v.matched.text.split() for t in texts)]
         best = max(views, key=lambda v: (v.confidence, v.ocr_score))
+        if any(v.cut for v in views):
+            # one view shows the plate's text cut off: the quad holds part of a plate (cut
+            # by the frame or hidden behind a wall), and what the others read is no better
+            best = replace(best, matched=None, confidence=0.0)
         size = legibility = None
         confidence = best.confidence
         if corners is not None:
@@ -402,7 +419,7 @@ class SignReader:
         matched, guess = best.matched, best.guess
         extra = {"ocr_ms": round(ocr_ms, 2), "view": best.name,
                  "plate_px": None if size is None else round(size, 1), "legibility": legibility,
-                 "views_tried": tried, "boxes": best.boxes,
+                 "views_tried": tried, "boxes": best.boxes, "cut": any(v.cut for v in views),
                  "place_class": matched.place_class if matched else None,
                  "best_guess": (guess.text, round(guess.score, 3)) if guess else None,
                  "disagreement": sorted({v.matched.text for v in views if v.matched}) if
@@ -428,6 +445,15 @@ class SignReader:
             "bbox": lambda: bbox_crop(image, quad, int(1.5 * self.out_height)),
         }
         return [(name, makers[name]) for name in self.views]
+
+
+def _worth_a_second_view(match: Match, vocabulary: Vocabulary) -> bool:
+    """Whether a confident reading still needs the other views: a pattern's words alone
+    ("MEETING ROOM" of ``MEETING ROOM {id}``) may have lost the plate's number at the
+    crop's edge, and a slot's look-alike letter ("ROOM S") may be a digit ("ROOM 5")."""
+    if match.slot is None:
+        return vocabulary.may_lack_slot(match.text)
+    return match.slot in LOOKALIKE_LETTERS
 
 
 def _make_engine(threads: int | None):

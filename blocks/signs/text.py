@@ -25,8 +25,8 @@ from rapidfuzz import fuzz, process
 
 from semantic.vocabulary import SLOT_TYPES, Pattern, Vocabulary, compact
 
-__all__ = ["MIN_SCORE", "SHORT", "Match", "best_match", "match_reading", "match_vocabulary",
-           "normalise", "readings"]
+__all__ = ["LOOKALIKE_LETTERS", "MIN_SCORE", "SHORT", "Match", "best_match", "match_reading",
+           "match_vocabulary", "normalise", "readings", "truncated"]
 
 #: Default acceptance threshold of :func:`match_vocabulary` (a 0..1 similarity).
 MIN_SCORE = 0.75
@@ -40,6 +40,8 @@ SHORT = 3
 # look-alike glyphs, applied by context (before upper-casing, so 'l' is still 'l')
 _TO_DIGIT = {"O": "0", "o": "0", "Q": "0", "D": "0", "I": "1", "l": "1", "i": "1",
              "S": "5", "s": "5", "B": "8", "Z": "2", "z": "2", "G": "6", "b": "6"}
+#: Capitals the OCR writes for a digit (S for 5, B for 8): a slot read as one may be a number.
+LOOKALIKE_LETTERS = frozenset(ch for ch in _TO_DIGIT if ch.isupper())
 _TO_LETTER = {"0": "O", "1": "I", "5": "S", "8": "B", "2": "Z", "6": "G"}
 _APOSTROPHES = "'`\u2018\u2019\u00b4"
 _DASHES = "\u2010\u2011\u2012\u2013\u2014\u2212_"
@@ -274,6 +276,27 @@ def match_reading(raw: str, vocabulary: Vocabulary) -> Match | None:
         if m is not None and (best is None or m.score > best.score):
             best = m
     return best
+
+
+def truncated(raw: str, match: Match) -> bool:
+    """Whether a reading is its match's words with letters missing at one end.
+
+    A plate cut by the frame's edge or hidden in part behind a wall reads as
+    the start or the end of its text ("CLASSRO" of a CLASSROOM 3 plate, "TROOM"
+    of IT ROOM); the fuzzy match would complete the words, but not the number
+    or the word that was cut off with them. A letter missing inside the text
+    ("MEETINGROO3") is the OCR's slip, not a cut.
+    """
+    read = compact(normalise(raw))
+    words = compact(match.text)
+    if match.slot is not None:
+        slot = compact(match.slot)
+        if not (read.endswith(slot) and words.endswith(slot)):
+            return False
+        # the slot closes both: only the start can be cut off
+        read, words = read[:len(read) - len(slot)], words[:len(words) - len(slot)]
+        return len(read) < len(words) and words.endswith(read)
+    return len(read) < len(words) and (words.startswith(read) or words.endswith(read))
 
 
 def match_vocabulary(text: str, vocabulary: Vocabulary, min_score: float = MIN_SCORE
