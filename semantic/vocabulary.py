@@ -141,6 +141,7 @@ class Vocabulary:
         self._first_spelling: dict[str, str] = {}  # compact form -> phrase listed first
         for phrase in self.phrases:
             self._first_spelling.setdefault(compact(phrase), phrase)
+        self._slotless = {compact(p.literal) for p in self.patterns}  # "MEETINGROOM", ...
 
     def __len__(self) -> int:
         return len(self.entries)
@@ -166,8 +167,7 @@ class Vocabulary:
     def may_lack_slot(self, text: str) -> bool:
         """Whether ``text`` is a pattern's words without its slot ("MEETING ROOM" of
         ``MEETING ROOM {id}``): a reading of it may have lost the plate's number."""
-        key = compact(text)
-        return any(compact(p.literal) == key for p in self.patterns)
+        return compact(text) in self._slotless
 
     def place_class(self, text: str) -> str | None:
         """The place class a sign text names exactly, or None.

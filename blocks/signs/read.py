@@ -379,11 +379,10 @@ class SignReader:
             res = self.ocr(crop, detect=name != "line")
             ocr_ms += (time.perf_counter() - t0) * 1e3
             guess = match_reading(res.text, vocab)
+            matched = guess if guess is not None and guess.score >= self.min_score else None
             # the rectified views hold the plate itself, so where their text stops the plate
             # stops (the loose, unwarped bbox view may drop a slanted plate's edge letter)
-            cut = name != "bbox" and guess is not None and guess.score >= self.min_score \
-                and truncated(res.text, guess)
-            matched = guess if guess is not None and guess.score >= self.min_score else None
+            cut = name != "bbox" and matched is not None and truncated(res.text, matched)
             confidence = 0.0
             if matched is not None:
                 # the slot must be read exactly: its least sure glyph bounds the confidence
