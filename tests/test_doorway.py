@@ -52,6 +52,22 @@ def test_a_corridor_wider_than_narrow_is_no_doorway_and_one_wall_is_no_doorway()
     assert find_doorway(walls, RES, (0.0, 0.0), np.array([[0.5, 2.4], [5.5, 2.4]])) is None
 
 
+@pytest.mark.parametrize("start", [(2.0, 0.4), (3.5, 0.4), (4.2, 0.5)])
+def test_a_way_leaving_a_wall_slantwise_past_a_corner_is_no_doorway(start):
+    """Near one wall, a way that leaves it at a slant has wall cells on both sides of its
+    line (behind on one, ahead on the other) and a room's corner beside it; the robot
+    stands in no doorway, and it would wait to line up with a door that is not there."""
+    walls = np.zeros((100, 100), dtype=bool)
+    y, x = np.mgrid[0:100, 0:100]
+    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    walls[(yc < 0.1) & (xc < 4.6)] = True  # the room's south wall
+    walls[(xc > 4.5) & (xc < 4.6) & (yc < 4.0)] = True  # its east wall: a corner at (4.6, 0)
+    way = np.array([start, (4.0, 2.0), (4.0, 4.5)])
+    assert find_doorway(walls, RES, (0.0, 0.0), way, narrow=0.45) is None
+    if start[0] > 3.0:  # any wall cells on both sides will do: a doorway at the corner
+        assert find_doorway(walls, RES, (0.0, 0.0), way, narrow=0.45, straddle=False)
+
+
 def test_the_points_to_line_up_at_and_to_leave_by_lie_on_the_axis_where_the_robot_fits():
     walls, centre, normal = slanted_wall(30.0, door=0.9)
     way = np.array([np.array(centre) - 2.0 * normal, np.array(centre) + 2.0 * normal])

@@ -76,9 +76,71 @@ def test_a_frontier_seen_through_a_wall_has_no_goal():
     assert frontier_goals(inflate(m, radius=0.36), frontiers, (2.0, 3.0)) == []
 
 
+def test_a_frontier_just_beyond_a_wall_has_no_goal_that_sees_it():
+    """A beam that passed a wall at a grazing angle marks free floor just outside it: a
+    frontier a wall's thickness from the room, within reach of goals inside (the test
+    above has its pocket beyond reach).  Going there shows nothing; with the map's walls
+    given, no goal sees it, while the real opening keeps its goal."""
+    h, w = int(6 / RES), int(8 / RES)
+    p = np.full((h, w), UNKNOWN)
+    y, x = np.mgrid[0:h, 0:w]
+    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    inside = (xc > 1.0) & (xc < 6.0) & (yc > 1.0) & (yc < 5.0)
+    p[inside] = FREE
+    wall = ((xc > 0.8) & (xc < 6.2) & (yc > 0.8) & (yc < 5.2)) & ~inside
+    p[wall] = OCC
+    p[wall & (xc < 1.0) & (yc > 2.4) & (yc < 3.6)] = FREE  # an opening in the west wall
+    p[(xc > 6.2) & (xc < 6.6) & (yc > 1.0) & (yc < 5.0)] = FREE  # leaked past the east wall
+    m = OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+    grid = inflate(m, radius=0.36)
+    frontiers = find_frontiers(m)
+    west = [f for f in frontiers if f.middle[0] < 1.5]
+    east = [f for f in frontiers if f.middle[0] > 6.0]
+    assert len(west) == 1 and east
+    blind = frontier_goals(grid, frontiers, (3.0, 3.0))
+    assert {id(g.frontier) for g in blind} >= {id(f) for f in east}  # within reach, through it
+    walls = m.classes()[0]
+    [goal] = frontier_goals(grid, frontiers, (3.0, 3.0), walls=walls)
+    assert goal.frontier is west[0]
+
+
 def test_frontier_mask_counts_the_grid_edge_as_unknown():
     free = np.ones((3, 3), dtype=bool)
     assert frontier_mask(free, ~free).sum() == 8  # every cell but the middle one
+
+
+def two_rooms_map() -> OccupancyMap:
+    """A free room at x 1..6 and another at x 6.2..8 beyond a wall with a door 0.9 m wide
+    (y 2.55..3.45); unknown east of x 8 (the frontier)."""
+    h, w = int(6 / RES), int(10 / RES)
+    p = np.full((h, w), UNKNOWN)
+    y, x = np.mgrid[0:h, 0:w]
+    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    inside = (xc > 1.0) & (xc < 8.0) & (yc > 1.0) & (yc < 5.0)
+    p[inside] = FREE
+    p[((xc > 0.8) & (xc < 8.0) & (yc > 0.8) & (yc < 5.2)) & ~inside] = OCC
+    p[(xc > 6.0) & (xc < 6.2) & inside & (np.abs(yc - 3.0) > 0.45)] = OCC
+    return OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("heading", [-30.0, 0.0, 30.0])
+def test_a_way_from_inside_a_doorway_lines_up_with_it_before_driving_on(heading):
+    """Planning while standing in a door (a way back out of a room, a way after a failed
+    one), the doorway is under the robot, not ahead of it: it turns square to the door
+    before it drives, rather than leaving at a slant that puts a jamb under a corner
+    (``door_underfoot``; off, the way's start is not looked at for doorways)."""
+    pose = np.array([6.1, 3.0, math.radians(heading)])
+    plain = FrontierExplorer(two_rooms_map, GUARD, ExploreParams())
+    plain.step(0.0, pose, CLEAR, follower_done=True)
+    assert plain.phase == "drive" and not plain._squeeze
+    explorer = FrontierExplorer(two_rooms_map, GUARD, ExploreParams(door_underfoot=True))
+    v, w = explorer.step(0.0, pose, CLEAR, follower_done=True)
+    assert explorer.target is not None and explorer.target.goal[0] > 6.5
+    if heading:  # a turn on the spot towards the door's axis first
+        assert explorer.phase == "align" and v == 0.0 and w * heading < 0.0
+        assert [kind for kind, _ in explorer._pending] == ["door", "leg"]
+    else:  # already square to it: straight through, as through any doorway
+        assert explorer.phase == "drive" and explorer._squeeze
 
 
 # ---- the explorer's outcomes, with a point robot -----------------------------------------------
@@ -172,6 +234,64 @@ def test_ways_that_fail_here_and_there_while_the_robot_gets_about_are_not_stuck(
             break
         robot.pose[:2] = spots[explorer.result.ways_failed]  # it got 2.5 m on each time
     assert explorer.result.ways_failed == len(spots) and not explorer.ended
+
+
+def corridor_open_along_its_side() -> OccupancyMap:
+    """A 12 x 1.6 m corridor (x 1..13, y 1..2.6) whose north side is open to unknown floor
+    all along: one frontier 12 m long, which no look from one place clears (the map
+    given to the explorer never changes)."""
+    h, w = int(5 / RES), int(14 / RES)
+    p = np.full((h, w), UNKNOWN)
+    y, x = np.mgrid[0:h, 0:w]
+    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    inside = (xc > 1.0) & (xc < 13.0) & (yc > 1.0) & (yc < 2.6)
+    p[inside] = FREE
+    p[((xc > 0.8) & (xc < 13.2) & (yc > 0.8) & (yc < 2.6)) & ~inside] = OCC
+    return OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+
+
+def test_a_long_frontier_still_there_after_a_goal_is_reached_is_visited_along_its_length():
+    """Reaching the goal at the frontier's middle used up only the part seen from there
+    (``seen_radius``); its two ends are visited too, and then the floor counts as done.
+    With ``seen_radius`` 0 the whole frontier goes with the goal at its middle."""
+    def goals_visited(seen_radius: float) -> list[float]:
+        explorer = FrontierExplorer(corridor_open_along_its_side, GUARD,
+                                    ExploreParams(spin_rate=3.0, seen_radius=seen_radius))
+        assert run(explorer, PointRobot(7.0, 1.5), 3000) is not None
+        assert explorer.result.end_reason == "explored"
+        return [e["goal"][0] for e in explorer.result.log if "goal" in e]
+    assert len(goals_visited(0.0)) == 1
+    goals = goals_visited(3.0)
+    # every part of it was looked at from within seen_radius, not only its middle...
+    seen = 3.0 + 0.2  # seen_radius, and a cell
+    assert all(min(abs(x - g) for g in goals) <= seen for x in np.arange(1.05, 13.0, 0.1)), goals
+    assert len(goals) <= 4, goals  # ...and not from every metre of it
+
+
+def corridor_with_floor_seen_through_its_wall() -> OccupancyMap:
+    """A closed 12 x 1.6 m corridor (x 1..13, y 1..2.6) with a strip of free floor 0.4 m
+    wide just outside its north wall (what beams passing the wall at a grazing angle
+    clear) and unknown beyond: a frontier 12 m long that no place inside sees."""
+    m = corridor_open_along_its_side()
+    p = m.occupancy.copy()
+    h, w = p.shape
+    y, x = np.mgrid[0:h, 0:w]
+    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    p[(xc > 0.8) & (xc < 13.2) & (yc > 2.6) & (yc < 2.8)] = OCC
+    p[(xc > 1.0) & (xc < 13.0) & (yc > 2.8) & (yc < 3.2)] = FREE
+    return OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+
+
+def test_a_long_frontier_seen_through_a_wall_is_not_visited_along_its_length():
+    """Its goal within reach across the wall is visited once (as any frontier's is), but
+    its other parts are approached again only from goals that see them: none does."""
+    explorer = FrontierExplorer(corridor_with_floor_seen_through_its_wall, GUARD,
+                                ExploreParams(spin_rate=3.0, seen_radius=3.0))
+    robot = PointRobot(7.0, 1.5)
+    assert run(explorer, robot, 3000) is not None
+    goals = [e["goal"] for e in explorer.result.log if "goal" in e]
+    assert explorer.result.end_reason == "explored"
+    assert len(goals) == 1, goals
 
 
 def test_a_frontier_whose_way_keeps_failing_is_given_up_and_counted():

@@ -295,6 +295,11 @@ class FrontierExploration(Block):
                                           "passes a doorway: the robot lines up on its axis "
                                           "in front of it and drives through straight "
                                           "(0: never)", unit="m", min=0.0),
+        "door_underfoot": Param(bool, False, "a way planned from inside a doorway turns "
+                                             "square to it first, and a doorway's jambs must "
+                                             "straddle the way (false: a way's first 0.35 m "
+                                             "is not looked at for doorways; "
+                                             "docs/exploration.md has the measured trade)"),
         "cruise": Param(float, 0.45, "speed on the way to a frontier", unit="m/s", min=0.01),
         "min_frontier": Param(float, 0.8, "ignore frontiers shorter than this", unit="m",
                               min=0.0),
@@ -302,6 +307,12 @@ class FrontierExploration(Block):
                        min=0.1),
         "gain_weight": Param(float, 1.0, "metres of travel one metre of frontier is worth",
                              min=0.0),
+        "seen_radius": Param(float, 0.0, "a goal reached with its frontier still there looked "
+                                         "at the frontier this far; the rest of a longer one "
+                                         "is approached again, from goals that see it (0: the "
+                                         "whole frontier goes with its goal; "
+                                         "docs/exploration.md has the measured trade)",
+                             unit="m", min=0.0),
         "stop_distance": Param(float, 0.3, "an echo this close in front of the body (or "
                                            "behind it when backing) fails the way", unit="m",
                                min=0.0),
@@ -350,6 +361,8 @@ class FrontierExploration(Block):
                                       lookahead=0.5, lookahead_min=0.25, goal_tolerance=0.15)
         self._params = ExploreParams(radius=self.p.radius, tight_radius=self.p.tight_radius,
                                      door_narrow=self.p.door_narrow,
+                                     door_underfoot=self.p.door_underfoot,
+                                     seen_radius=self.p.seen_radius,
                                      min_frontier=self.p.min_frontier,
                                      reach=self.p.reach, gain_weight=self.p.gain_weight,
                                      stall_time=self.p.stall_time,

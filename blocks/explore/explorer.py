@@ -26,7 +26,9 @@ bumper is pressed or the robot stalls (it asks to move and odometry says it
 does not: it then undoes its last motion for a moment), or when it makes no
 progress along the way.  What stopped it goes on the planning grid, so the
 next way goes round it.  A goal that failed ``max_attempts`` times, or
-was reached, is not chosen again.  Ways that keep failing in one spot mean
+was reached, is not chosen again (with ``seen_radius`` set, a long frontier
+still there after a goal near it was reached is approached again where it
+is farther than that from it).  Ways that keep failing in one spot mean
 the robot is wedged there: it backs out along its own track.
 
 A way through a doorway (:mod:`blocks.navigate.doorway`) is driven in three
@@ -53,7 +55,7 @@ from blocks.navigate.legs import TurnWatch
 from blocks.navigate.planner import PlanningError, plan
 from blocks.navigate.pursuit import PurePursuit, PursuitParams
 
-from .frontiers import FrontierGoal, find_frontiers, frontier_goals
+from .frontiers import FrontierGoal, find_frontiers, frontier_goals, unseen_parts
 
 __all__ = ["ExploreParams", "FrontierExplorer"]
 
@@ -158,6 +160,12 @@ class ExploreParams:
         its axis, turns to face along the axis, and drives straight through at
         ``door_speed`` (m/s), its sonar guard's lane no wider than the body
         (the jambs are beside it, not ahead).  0 turns that off.
+    door_underfoot
+        A way planned while the robot stands in a doorway (within half of
+        ``door_approach`` of it) turns square to it on the spot and drives
+        straight through, and a doorway's jambs must straddle the way.
+        False (the default): a way's first half of ``door_approach`` is not
+        looked at for doorways (docs/exploration.md has the measured trade).
     back_off_time, back_off_speed
         After a bump or a stall the robot undoes its last motion this long (s)
         at this speed (m/s), and after an echo blocked its way it backs
@@ -168,6 +176,14 @@ class ExploreParams:
         A goal that failed this many times is not tried again.
     forget_radius
         Goals this close (m) to one reached or given up count as the same goal.
+    seen_radius
+        A goal reached with its frontier still there has looked at the
+        frontier within this distance (m); the rest of a longer one is
+        approached again (:func:`~blocks.explore.frontiers.unseen_parts`),
+        from goals that see it past no wall of the map
+        (:func:`~blocks.explore.frontiers.frontier_goals`' ``walls``).
+        0 (the default): the whole frontier goes with its reached goal
+        (docs/exploration.md has the measured trade).
     max_failures, stuck_radius
         This many failed ways in a row, with no goal reached between and all
         within ``stuck_radius`` (m) of where the first of them failed, and
@@ -218,6 +234,7 @@ class ExploreParams:
     stall_time: float = 12.0
     max_attempts: int = 2
     forget_radius: float = 0.7
+    seen_radius: float = 0.0
     max_failures: int = 8
     stuck_radius: float = 2.0
     hand_backs: int = 3
@@ -245,6 +262,7 @@ class ExploreParams:
     door_narrow: float = 0.45
     door_approach: float = 0.7
     door_speed: float = 0.2
+    door_underfoot: bool = False
     monitor: MonitorParams | None = None
     held_time: float = 0.8
     unpin_time: float = 8.0
@@ -460,6 +478,8 @@ class FrontierExplorer:
             return self._retrace(time, pose, ranges)
         if self.phase == "plan" and not self._plan(time, pose):
             return (0.0, 0.0) if self.phase != "ended" else None
+        if self.phase == "align":  # the way starts in a doorway: square to it first
+            return self._align(time, pose, ranges)
         return self._drive(time, pose, ranges)
 
     def _take_over(self, time: float, reason: str) -> None:
@@ -670,30 +690,48 @@ class FrontierExplorer:
         self._occupancy = occupancy
         if occupancy is None:
             return []
-        wide = self._grid(occupancy, time, self.p.radius)
         frontiers = find_frontiers(occupancy, min_length=self.p.min_frontier,
                                    wall_margin=self.p.wall_margin)
-        goals = [(g, wide) for g in frontier_goals(wide, frontiers, pose[:2],
-                                                   reach=self.p.reach)]
-        if self.p.tight_radius > 0 and frontiers:
-            goals = self._through_tight_doors(occupancy, time, pose, frontiers, goals)
+        wide = self._grid(occupancy, time, self.p.radius)
+        tight = self._grid(occupancy, time, self.p.tight_radius) \
+            if self.p.tight_radius > 0 and frontiers else None
+
+        def choose(frontiers: list[Any], walls: np.ndarray | None = None
+                   ) -> list[tuple[FrontierGoal, NavGrid]]:
+            goals = [(g, wide) for g in frontier_goals(wide, frontiers, pose[:2],
+                                                       reach=self.p.reach, walls=walls)]
+            if tight is not None and frontiers:
+                goals = self._through_tight_doors(tight, pose, frontiers, goals, walls)
+            return goals
+        goals = choose(frontiers)
         self.result.frontiers_out_of_reach = len(frontiers) - len(goals)
         self._given_up_left = sum(self._near(g.goal, self._given_up) for g, _ in goals)
-        goals = [(g, grid) for g, grid in goals if not self._near(g.goal, self._forgotten)]
+        # a goal reached with its frontier still there used up the frontier near it; the rest
+        # of a long one (a corridor's open end seen along its side) is still to be visited,
+        # from where the robot sees it: a frontier drawn outside the building by beams that
+        # passed a wall at a grazing angle is never seen from inside, one part or another
+        reached = [xy for xy in self._forgotten if not self._near(xy, self._given_up)] \
+            if self.p.seen_radius > 0 else []
+        rest = [part for g, _ in goals
+                if self._near(g.goal, reached) and not self._near(g.goal, self._given_up)
+                for part in unseen_parts(g.frontier, reached, self.p.seen_radius,
+                                         self.p.min_frontier, occupancy.resolution)]
+        goals = [(g, grid) for g, grid in goals + (choose(rest, occupancy.classes()[0])
+                                                   if rest else [])
+                 if not self._near(g.goal, self._forgotten)]
         return sorted(goals, key=lambda pair: pair[0].distance
                       - self.p.gain_weight * pair[0].frontier.length)
 
-    def _through_tight_doors(self, occupancy: Any, time: float, pose: np.ndarray,
-                             frontiers: list[Any], goals: list[tuple[FrontierGoal, NavGrid]]
-                             ) -> list[tuple[FrontierGoal, NavGrid]]:
+    def _through_tight_doors(self, tight: NavGrid, pose: np.ndarray, frontiers: list[Any],
+                             goals: list[tuple[FrontierGoal, NavGrid]],
+                             walls: np.ndarray | None) -> list[tuple[FrontierGoal, NavGrid]]:
         """Each frontier's goal on the tight grid where it gets nearer than the wide one's."""
-        tight = self._grid(occupancy, time, self.p.tight_radius)
         wide = {id(g.frontier): (g, grid) for g, grid in goals}
 
         def to_middle(g: FrontierGoal) -> float:
             return math.hypot(g.goal[0] - g.frontier.middle[0], g.goal[1] - g.frontier.middle[1])
         out = []
-        for g in frontier_goals(tight, frontiers, pose[:2], reach=self.p.reach):
+        for g in frontier_goals(tight, frontiers, pose[:2], reach=self.p.reach, walls=walls):
             known = wide.get(id(g.frontier))
             if known is None or to_middle(g) < to_middle(known[0]) - self.p.reach / 2:
                 out.append((g, tight))
@@ -769,13 +807,23 @@ class FrontierExplorer:
             return
         door_way, before, after = door
         self.result.doorways += 1
+        s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(way, axis=0).T))]
+        if self.p.door_underfoot and door_way.at < self.p.door_approach / 2:
+            # standing in it: line up, then through
+            rest = way[s > door_way.at + float(np.hypot(*(after - np.asarray(door_way.centre))))]
+            self._pending = [("door", np.vstack([way[0], after])),
+                             ("leg", np.vstack([after, rest]) if len(rest) else
+                              np.vstack([after, way[-1]]))]
+            self.phase = "align"
+            self._align_heading = math.atan2(door_way.axis[1], door_way.axis[0])
+            self._leg, self._progress_time = None, time
+            return
         try:
             to_door = plan(grid, way[0], before).points
         except PlanningError:
             self._start_leg(way, time)
             return
         # the rest of the way from where the doorway's leg leaves it
-        s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(way, axis=0).T))]
         rest = way[s > door_way.at + float(np.hypot(*(after - np.asarray(door_way.centre))))]
         self._pending = [("align", math.atan2(door_way.axis[1], door_way.axis[0])),
                          ("door", np.vstack([before, after])),
@@ -789,8 +837,11 @@ class FrontierExplorer:
         if self.p.door_narrow <= 0 or self._occupancy is None:
             return None
         occupied, _, _ = self._occupancy.classes()
+        underfoot = self.p.door_underfoot
         door = find_doorway(occupied, self._occupancy.resolution, self._occupancy.origin, way,
-                            narrow=self.p.door_narrow, skip=self.p.door_approach / 2)
+                            narrow=self.p.door_narrow,
+                            skip=0.0 if underfoot else self.p.door_approach / 2,
+                            straddle=underfoot)
         if door is None:
             return None
         ends = doorway_legs(grid, door, approach=self.p.door_approach)

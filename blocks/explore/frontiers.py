@@ -26,7 +26,8 @@ from scipy import ndimage
 
 from blocks.navigate.grid import NavGrid
 
-__all__ = ["Frontier", "FrontierGoal", "find_frontiers", "frontier_goals", "frontier_mask"]
+__all__ = ["Frontier", "FrontierGoal", "find_frontiers", "frontier_goals", "frontier_mask",
+           "unseen_parts"]
 
 _FOUR = ndimage.generate_binary_structure(2, 1)
 _EIGHT = np.ones((3, 3), dtype=bool)
@@ -127,15 +128,14 @@ def find_frontiers(occupancy_map: Any, *, min_length: float = 0.6,
         if length < min_length:
             continue
         points = np.column_stack([ox + (c + 0.5) * res, oy + (r + 0.5) * res])
-        centroid = points.mean(axis=0)
-        middle = points[int(np.argmin(np.hypot(*(points - centroid).T)))]
-        frontiers.append(Frontier(points, (float(middle[0]), float(middle[1])), length))
+        frontiers.append(Frontier(points, _middle(points), length))
     frontiers.sort(key=lambda f: -f.length)
     return frontiers
 
 
 def frontier_goals(grid: NavGrid, frontiers: Sequence[Frontier], start: Sequence[float], *,
-                   reach: float = 1.0, snap_radius: float = 0.5) -> list[FrontierGoal]:
+                   reach: float = 1.0, snap_radius: float = 0.5,
+                   walls: np.ndarray | None = None) -> list[FrontierGoal]:
     """A goal for each frontier the robot can reach, nearest goal first.
 
     Parameters
@@ -148,6 +148,13 @@ def frontier_goals(grid: NavGrid, frontiers: Sequence[Frontier], start: Sequence
     reach
         A goal is at most this far (m) from a cell of its frontier: the
         robot's sonar sees well past that.
+    walls
+        (H, W) bool occupied cells of the map, on the grid's cells: a goal
+        must see the frontier cell it is nearest to past none of them.  A
+        sonar beam that meets a wall at a grazing angle returns no echo and
+        marks free floor beyond it, so a frontier runs along the building's
+        outside, a wall's thickness from goals inside; going there shows
+        nothing.  None: no such test.
     """
     if not frontiers:
         return []
@@ -169,6 +176,9 @@ def frontier_goals(grid: NavGrid, frontiers: Sequence[Frontier], start: Sequence
     distance, (near_r, near_c) = ndimage.distance_transform_edt(ids == 0, return_indices=True)
     candidate = component & (distance * grid.resolution <= reach)
     cr, cc = np.nonzero(candidate)
+    if walls is not None and len(cr):
+        seen = _in_sight(np.asarray(walls, dtype=bool), cr, cc, near_r[cr, cc], near_c[cr, cc])
+        cr, cc = cr[seen], cc[seen]
     if len(cr) == 0:
         return []
     owner = ids[near_r[cr, cc], near_c[cr, cc]]
@@ -185,3 +195,61 @@ def frontier_goals(grid: NavGrid, frontiers: Sequence[Frontier], start: Sequence
                                   float(np.hypot(goal[0] - here[0], goal[1] - here[1]))))
     goals.sort(key=lambda g: g.distance)
     return goals
+
+
+def _in_sight(walls: np.ndarray, r0: np.ndarray, c0: np.ndarray, r1: np.ndarray,
+              c1: np.ndarray) -> np.ndarray:
+    """Whether the straight line from each cell (r0, c0) to (r1, c1) crosses no wall cell
+    (sampled every half cell, a corner clipped diagonally included)."""
+    span = float(np.max(np.hypot(r1 - r0, c1 - c0), initial=0.0))
+    t = np.linspace(0.0, 1.0, int(math.ceil(2 * span)) + 2)[:, None]
+    rows = np.floor(r0 + 0.5 + t * (r1 - r0)).astype(np.int64)
+    cols = np.floor(c0 + 0.5 + t * (c1 - c0)).astype(np.int64)
+    return ~walls[rows, cols].any(axis=0)
+
+
+def _middle(points: np.ndarray) -> tuple[float, float]:
+    """The point nearest the centroid: on the run, unlike the centroid of a curved one."""
+    middle = points[int(np.argmin(np.hypot(*(points - points.mean(axis=0)).T)))]
+    return float(middle[0]), float(middle[1])
+
+
+def unseen_parts(frontier: Frontier, places: Sequence[Sequence[float]], radius: float,
+                 min_length: float, resolution: float) -> list[Frontier]:
+    """The pieces of ``frontier`` farther than ``radius`` (m) from every one of ``places``.
+
+    Why: a robot that went to a frontier and found it still there has looked
+    at it from there; a long frontier (a corridor's open end seen along its
+    side) is only looked at near that place, and the rest is still worth a
+    visit. Each connected piece at least ``min_length`` (m) long is a
+    frontier of its own; ``resolution`` is the map's cell size (m).
+
+    Examples
+    --------
+    >>> f = Frontier(np.array([[x, 0.0] for x in np.arange(0.05, 9.0, 0.1)]), (4.45, 0.0), 9.0)
+    >>> [round(p.length, 1) for p in unseen_parts(f, [(4.5, 0.5)], 2.0, 0.8, 0.1)]
+    [2.6, 2.6]
+    >>> unseen_parts(f, [(4.5, 0.5)], 6.0, 0.8, 0.1)
+    []
+    """
+    xy = np.asarray(places, dtype=np.float64).reshape(-1, 2)
+    points = frontier.points
+    if len(xy):
+        gap = np.hypot(points[:, None, 0] - xy[None, :, 0],
+                       points[:, None, 1] - xy[None, :, 1]).min(axis=1)
+        points = points[gap > radius]
+    if len(points) * resolution < min_length:
+        return []
+    cells = np.floor(points / resolution).astype(np.int64)
+    lo = cells.min(axis=0)
+    raster = np.zeros(tuple(cells.max(axis=0) - lo + 1), dtype=bool)
+    raster[tuple((cells - lo).T)] = True
+    labels, _ = ndimage.label(raster, structure=_EIGHT)
+    piece = labels[tuple((cells - lo).T)]
+    parts = []
+    for k in np.unique(piece):
+        run = points[piece == k]
+        if len(run) * resolution < min_length:
+            continue
+        parts.append(Frontier(run, _middle(run), len(run) * resolution))
+    return parts

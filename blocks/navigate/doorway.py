@@ -64,7 +64,7 @@ def _resample(way: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
 
 def find_doorway(walls: np.ndarray, resolution: float, origin: tuple[float, ...],
                  way: np.ndarray, *, narrow: float = 0.5, skip: float = 0.0,
-                 search: float = 1.0) -> Doorway | None:
+                 search: float = 1.0, straddle: bool = True) -> Doorway | None:
     """The first doorway on ``way`` (after ``skip`` m of it), or None.
 
     Parameters
@@ -79,10 +79,16 @@ def find_doorway(walls: np.ndarray, resolution: float, origin: tuple[float, ...]
         on each side, where pursuit's corner cutting and a slanted approach
         put a jamb under the body.
     skip
-        Metres of the way's start to leave out (the doorway the robot stands in
-        when it plans is found by the caller's own means).
+        Metres of the way's start to leave out.
     search
         How far (m) from the way a jamb may be.
+    straddle
+        The jambs must straddle the way (it passes between them): near one
+        wall, a way leaving it at a slant has that wall's cells on both
+        sides of its line, one side behind and the other ahead, and a room's
+        corner beside it looks like a doorway.  False: any wall cells on
+        both sides will do (what the explorer asked before it looked for a
+        doorway under the robot; it skipped a way's start instead).
 
     Examples
     --------
@@ -119,7 +125,7 @@ def find_doorway(walls: np.ndarray, resolution: float, origin: tuple[float, ...]
         end = k
         while end + 1 < len(xy) and tight[end + 1]:
             end += 1
-        door = _throat(walls, resolution, origin, xy, at, k, end, search)
+        door = _throat(walls, resolution, origin, xy, at, k, end, search, straddle)
         if door is not None:
             return door
         k = end + 1
@@ -127,10 +133,12 @@ def find_doorway(walls: np.ndarray, resolution: float, origin: tuple[float, ...]
 
 
 def _throat(walls: np.ndarray, resolution: float, origin: tuple[float, ...], xy: np.ndarray,
-            at: np.ndarray, first: int, last: int, search: float) -> Doorway | None:
+            at: np.ndarray, first: int, last: int, search: float,
+            straddle: bool = True) -> Doorway | None:
     """The doorway of the way's narrow stretch ``first..last``: at the point where the
     nearest wall cell on its left and the nearest on its right are closest together
-    (those are the jambs), if walls flank it on both sides within ``search``."""
+    (those are the jambs), if walls flank it on both sides within ``search`` (and, with
+    ``straddle``, the way passes between them)."""
     middle = xy[(first + last) // 2]
     k = int(math.ceil((search + np.hypot(*(xy[last] - xy[first])) / 2) / resolution))
     r, c = (int(math.floor((middle[1] - origin[1]) / resolution)),
@@ -155,6 +163,8 @@ def _throat(walls: np.ndarray, resolution: float, origin: tuple[float, ...], xy:
         a = cells[left][int(np.argmin(reach[left]))]
         b = cells[right][int(np.argmin(reach[right]))]
         width = float(np.hypot(*(a - b)))
+        if straddle and _off_segment(xy[i], a, b) > 0.25 * width + resolution:
+            continue  # both on one wall (behind and ahead along it), not across the way
         if best is None or width < best[0] - 1e-9:
             best = (width, a, b, i, ahead)
     if best is None:
@@ -167,6 +177,13 @@ def _throat(walls: np.ndarray, resolution: float, origin: tuple[float, ...], xy:
     centre = (a + b) / 2
     return Doorway((float(centre[0]), float(centre[1])), (float(axis[0]), float(axis[1])),
                    width, float(at[i]))
+
+
+def _off_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Distance (m) from ``p`` to the segment ``a``-``b``."""
+    ab = b - a
+    t = float(np.clip((p - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0))
+    return float(np.hypot(*(p - (a + t * ab))))
 
 
 def doorway_legs(grid: NavGrid, door: Doorway, *, approach: float = 0.7,
