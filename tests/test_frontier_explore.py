@@ -27,6 +27,13 @@ RES = 0.1
 FREE, OCC, UNKNOWN = 0.05, 0.95, 0.5
 
 
+def unknown_floor(width: float, height: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An all-unknown map ``width`` x ``height`` m, and its cells' centre x and y."""
+    h, w = int(height / RES), int(width / RES)
+    y, x = np.mgrid[0:h, 0:w]
+    return np.full((h, w), UNKNOWN), (x + 0.5) * RES, (y + 0.5) * RES
+
+
 def room_map(opening: bool = True, pocket: bool = False) -> OccupancyMap:
     """An 8 x 6 m grid: a free 5 x 4 m room (walls mapped) at x 1..6, y 1..5.
 
@@ -34,10 +41,7 @@ def room_map(opening: bool = True, pocket: bool = False) -> OccupancyMap:
     ``pocket``: a free strip beyond a closed wall at x 6.5..7.5 (seen through
     it, not reachable), bordering unknown.
     """
-    h, w = int(6 / RES), int(8 / RES)
-    p = np.full((h, w), UNKNOWN)
-    y, x = np.mgrid[0:h, 0:w]
-    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    p, xc, yc = unknown_floor(8, 6)
     inside = (xc > 1.0) & (xc < 6.0) & (yc > 1.0) & (yc < 5.0)
     p[inside] = FREE
     wall = ((xc > 0.8) & (xc < 6.2) & (yc > 0.8) & (yc < 5.2)) & ~inside
@@ -81,15 +85,10 @@ def test_a_frontier_just_beyond_a_wall_has_no_goal_that_sees_it():
     frontier a wall's thickness from the room, within reach of goals inside (the test
     above has its pocket beyond reach).  Going there shows nothing; with the map's walls
     given, no goal sees it, while the real opening keeps its goal."""
-    h, w = int(6 / RES), int(8 / RES)
-    p = np.full((h, w), UNKNOWN)
-    y, x = np.mgrid[0:h, 0:w]
+    p = room_map(opening=False).occupancy.copy()
+    y, x = np.mgrid[0:p.shape[0], 0:p.shape[1]]
     xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
-    inside = (xc > 1.0) & (xc < 6.0) & (yc > 1.0) & (yc < 5.0)
-    p[inside] = FREE
-    wall = ((xc > 0.8) & (xc < 6.2) & (yc > 0.8) & (yc < 5.2)) & ~inside
-    p[wall] = OCC
-    p[wall & (xc < 1.0) & (yc > 2.4) & (yc < 3.6)] = FREE  # an opening in the west wall
+    p[(xc > 0.8) & (xc < 1.0) & (yc > 2.4) & (yc < 3.6)] = FREE  # an opening in the west wall
     p[(xc > 6.2) & (xc < 6.6) & (yc > 1.0) & (yc < 5.0)] = FREE  # leaked past the east wall
     m = OccupancyMap(p, RES, (0.0, 0.0, 0.0))
     grid = inflate(m, radius=0.36)
@@ -112,10 +111,7 @@ def test_frontier_mask_counts_the_grid_edge_as_unknown():
 def two_rooms_map() -> OccupancyMap:
     """A free room at x 1..6 and another at x 6.2..8 beyond a wall with a door 0.9 m wide
     (y 2.55..3.45); unknown east of x 8 (the frontier)."""
-    h, w = int(6 / RES), int(10 / RES)
-    p = np.full((h, w), UNKNOWN)
-    y, x = np.mgrid[0:h, 0:w]
-    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    p, xc, yc = unknown_floor(10, 6)
     inside = (xc > 1.0) & (xc < 8.0) & (yc > 1.0) & (yc < 5.0)
     p[inside] = FREE
     p[((xc > 0.8) & (xc < 8.0) & (yc > 0.8) & (yc < 5.2)) & ~inside] = OCC
@@ -240,10 +236,7 @@ def corridor_open_along_its_side() -> OccupancyMap:
     """A 12 x 1.6 m corridor (x 1..13, y 1..2.6) whose north side is open to unknown floor
     all along: one frontier 12 m long, which no look from one place clears (the map
     given to the explorer never changes)."""
-    h, w = int(5 / RES), int(14 / RES)
-    p = np.full((h, w), UNKNOWN)
-    y, x = np.mgrid[0:h, 0:w]
-    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    p, xc, yc = unknown_floor(14, 5)
     inside = (xc > 1.0) & (xc < 13.0) & (yc > 1.0) & (yc < 2.6)
     p[inside] = FREE
     p[((xc > 0.8) & (xc < 13.2) & (yc > 0.8) & (yc < 2.6)) & ~inside] = OCC
@@ -572,10 +565,7 @@ def door_map(door: float) -> OccupancyMap:
     """Two rooms side by side (x 1..5 and 5.2..7.5, y 1..5) through a door ``door`` m wide
     in the wall between them (centred at y = 3), the second room seen only up to x = 7:
     its far side is unknown, a frontier 4 m long."""
-    h, w = int(6 / RES), int(9 / RES)
-    p = np.full((h, w), UNKNOWN)
-    y, x = np.mgrid[0:h, 0:w]
-    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    p, xc, yc = unknown_floor(9, 6)
     rooms = (yc > 1.0) & (yc < 5.0) & (((xc > 1.0) & (xc < 5.0)) | ((xc > 5.2) & (xc < 7.0)))
     walls = (yc > 0.8) & (yc < 5.2) & (xc > 0.8) & (xc < 5.2) & ~rooms
     p[rooms] = FREE
