@@ -807,28 +807,22 @@ class FrontierExplorer:
             return
         door_way, before, after = door
         self.result.doorways += 1
+        # the rest of the way from where the doorway's leg leaves it
         s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(way, axis=0).T))]
+        rest = way[s > door_way.at + float(np.hypot(*(after - np.asarray(door_way.centre))))]
+        align = ("align", math.atan2(door_way.axis[1], door_way.axis[0]))
+        leg = ("leg", np.vstack([after, rest]) if len(rest) else np.vstack([after, way[-1]]))
         if self.p.door_underfoot and door_way.at < self.p.door_approach / 2:
-            # standing in it: line up, then through
-            rest = way[s > door_way.at + float(np.hypot(*(after - np.asarray(door_way.centre))))]
-            self._pending = [("door", np.vstack([way[0], after])),
-                             ("leg", np.vstack([after, rest]) if len(rest) else
-                              np.vstack([after, way[-1]]))]
-            self.phase = "align"
-            self._align_heading = math.atan2(door_way.axis[1], door_way.axis[0])
-            self._leg, self._progress_time = None, time
+            # standing in it: line up where it stands, then straight through
+            self._pending = [align, ("door", np.vstack([way[0], after])), leg]
+            self._next_leg(time)
             return
         try:
             to_door = plan(grid, way[0], before).points
         except PlanningError:
             self._start_leg(way, time)
             return
-        # the rest of the way from where the doorway's leg leaves it
-        rest = way[s > door_way.at + float(np.hypot(*(after - np.asarray(door_way.centre))))]
-        self._pending = [("align", math.atan2(door_way.axis[1], door_way.axis[0])),
-                         ("door", np.vstack([before, after])),
-                         ("leg", np.vstack([after, rest]) if len(rest) else
-                          np.vstack([after, way[-1]]))]
+        self._pending = [align, ("door", np.vstack([before, after])), leg]
         self._start_leg(to_door, time)
 
     def _doorway(self, way: np.ndarray, grid: NavGrid
