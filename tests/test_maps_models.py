@@ -225,3 +225,39 @@ def test_beams_through_a_doorway_open_what_a_jambs_arc_painted(shared_arc, doorw
     p, (ix, iy) = lo.probabilities()
     doorway = p[0 - iy, int(math.floor(2.0 / 0.05)) - ix]
     assert (doorway < 0.5) == doorway_free
+
+
+def _wall_then_glance(occlusion: float | None) -> tuple[float, float]:
+    """A wall along y = 1 m, heard square on from below, then glanced at by silent readings
+    from along the corridor: its probability at x = 2 m, and that of the floor behind it."""
+    lo = LogOddsMap(InverseSonarModel(occlusion=occlusion), resolution=0.05)
+    for x in np.arange(1.0, 3.01, 0.05):  # a side sonar passes under the wall
+        lo.add_scan(np.array([[x, 0.0, math.pi / 2]]), np.array([1.0]))
+    for x in np.arange(-2.0, 0.01, 0.05):  # a diagonal sonar 25 deg up: its sound glances off
+        lo.add_scan(np.array([[x, 0.0, math.radians(25.0)]]), np.array([4.0]))
+    p, (ix, iy) = lo.probabilities()
+
+    def prob(x: float, y: float) -> float:
+        return float(p[int(math.floor(y / 0.05)) - iy, int(math.floor(x / 0.05)) - ix])
+
+    return prob(2.0, 1.0), prob(2.0, 1.4)
+
+
+def test_a_silent_reading_does_not_clear_through_a_wall_the_map_is_sure_of():
+    wall, behind = _wall_then_glance(occlusion=1.5)
+    assert wall > 0.9 and behind == pytest.approx(0.5)  # the wall stays; behind it, unknown
+    wall, behind = _wall_then_glance(occlusion=None)
+    assert wall < 0.5 and behind < 0.5  # cleared through: free floor drawn across the wall
+
+
+def test_occlusion_leaves_the_floor_before_the_wall_and_echoes_alone():
+    lo = LogOddsMap(InverseSonarModel(occlusion=1.5), resolution=0.05)
+    for _ in range(5):
+        lo.add_scan(np.array([[0.0, 0.0, 0.0]]), np.array([1.0]))  # a wall 1 m ahead
+    lo.add_scan(np.array([[0.0, 0.0, 0.0]]), np.array([4.0]))  # then silence
+    p, (ix, iy) = lo.probabilities()
+    assert p[0 - iy, int(math.floor(0.5 / 0.05)) - ix] < 0.5  # before the wall: free
+    assert p[0 - iy, int(math.floor(1.0 / 0.05)) - ix] > 0.9  # the wall kept
+    assert p[0 - iy, int(math.floor(2.0 / 0.05)) - ix] == pytest.approx(0.5)  # behind: unknown
+    with pytest.raises(ValueError, match="occlusion"):
+        InverseSonarModel(occlusion=0.0)

@@ -214,6 +214,10 @@ class LogOddsMapBlock(_MapWriter):
                                          "(farther) arc gives each cell its share, so the "
                                          "jambs' arcs do not paint doorways shut (negative: "
                                          "every arc cell gets all of l_occ)", unit="m"),
+        "occlusion": Param(float, -1.0, "log-odds from which a cell stops the clearing of a "
+                                        "reading without an echo, so a wall the map is sure "
+                                        "of is not cleared through (negative: nothing stops "
+                                        "it)"),
     }
 
     def setup(self) -> None:
@@ -227,7 +231,9 @@ class LogOddsMapBlock(_MapWriter):
                                        no_echo_reach=(None if self.p.no_echo_reach < 0
                                                       else self.p.no_echo_reach),
                                        shared_arc=(None if self.p.shared_arc <= 0
-                                                   else self.p.shared_arc))
+                                                   else self.p.shared_arc),
+                                       occlusion=(None if self.p.occlusion <= 0
+                                                  else self.p.occlusion))
         self.map = LogOddsMap(self.model, resolution=self.p.resolution)  # tables built once
 
     def reset(self) -> None:

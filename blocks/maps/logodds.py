@@ -54,6 +54,14 @@ class InverseSonarModel:
         ``l_occ * shared_arc / width`` to each of its cells.  Else the arcs a
         door's jambs echo from across a room paint the doorway shut, and the
         few beams that pass through it from close by never open it again.
+    occlusion
+        Log-odds from which a cell stops a silent reading's clearing; None:
+        nothing stops it.  A sonar that hears nothing has either nothing in
+        range or had its sound glance off a wall; cleared through a wall the
+        map is already sure of, the free floor drawn behind it makes frontiers
+        in rooms across a corridor's wall, and an explorer drives at the wall
+        to reach them.  Each bearing of the cone clears up to the first such
+        cell on it.
     """
 
     cone_deg: float = 30.0
@@ -66,6 +74,7 @@ class InverseSonarModel:
     l_max: float = 4.0
     no_echo_reach: float | None = None
     shared_arc: float | None = None
+    occlusion: float | None = None
 
     def __post_init__(self) -> None:
         if not 0 < self.cone_deg < 180:
@@ -80,6 +89,8 @@ class InverseSonarModel:
             raise ValueError(f"no_echo_reach must be >= 0, got {self.no_echo_reach}")
         if self.shared_arc is not None and not self.shared_arc > 0:
             raise ValueError(f"shared_arc must be > 0, got {self.shared_arc}")
+        if self.occlusion is not None and not self.occlusion > 0:
+            raise ValueError(f"occlusion must be > 0 (log-odds), got {self.occlusion}")
 
     def occupied_evidence(self, reading: float) -> float:
         """Log-odds each arc cell of an echo at ``reading`` (m) gets (see ``shared_arc``)."""
@@ -189,7 +200,10 @@ class LogOddsMap:
         if 2 * self._reach >= self.OUTSIDE:
             raise ValueError(f"max_range / resolution is too large for the range codes "
                              f"({self.model.max_range} m at {resolution} m per cell)")
-        self._cones = [self._cone(math.radians(k)) for k in range(360)]
+        cones = [self._cone_cells(math.radians(k)) for k in range(360)]
+        self._cones = [cone[:3] for cone in cones]
+        # bearings only where a silent reading may be stopped (they cost a table per degree)
+        self._bearings = [cone[3] for cone in cones] if self.model.occlusion is not None else []
         self._lut = self._lookup_table()
         # clear-only rows: a reading without an echo that clears up to a given range
         ranges = np.arange(256) / 2 * resolution
@@ -199,17 +213,47 @@ class LogOddsMap:
 
     def _cone(self, heading: float) -> tuple[int, int, np.ndarray]:
         """Range codes (half cells) of the cells in a cone at ``heading``, cropped to it."""
+        dr, dc, codes, _ = self._cone_cells(heading)
+        return dr, dc, codes
+
+    def _cone_cells(self, heading: float) -> tuple[int, int, np.ndarray, np.ndarray]:
+        """:meth:`_cone` and, for the same cells, each one's bearing off the axis (rad)."""
         n = self._reach
         offsets = np.arange(-n, n + 1, dtype=np.float64)
         dx, dy = np.meshgrid(offsets, offsets)
         rho = np.hypot(dx, dy)
         along = dx * math.cos(heading) + dy * math.sin(heading)
+        across = -dx * math.sin(heading) + dy * math.cos(heading)
         half = math.radians(self.model.cone_deg) / 2
         inside = ((along >= rho * math.cos(half)) & (rho <= n)) | (rho == 0)
         codes = np.where(inside, np.round(rho * 2), self.OUTSIDE).astype(np.uint8)
         rows, cols = np.nonzero(inside)
         r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
-        return r0 - n, c0 - n, codes[r0:r1, c0:c1].copy()
+        bearing = np.arctan2(across, along).astype(np.float32)
+        return r0 - n, c0 - n, codes[r0:r1, c0:c1].copy(), bearing[r0:r1, c0:c1].copy()
+
+    def _occluded(self, heading_index: int, codes: np.ndarray,
+                  log_odds: np.ndarray) -> np.ndarray:
+        """Cells of a cone at or behind, on their bearing, a cell of at least ``occlusion``.
+
+        ``log_odds`` is the map under the cone's box before this scan.  A cell
+        hides the bearings it spans (its width seen from the apex), so a wall
+        of cells leaves no gaps between bearings.
+        """
+        stop = (codes != self.OUTSIDE) & (codes > 0) & (log_odds >= self.model.occlusion)
+        if not stop.any():
+            return np.zeros(codes.shape, dtype=bool)
+        bearing = self._bearings[heading_index]
+        stop_bearing, stop_code = bearing[stop], codes[stop].astype(np.int16)
+        # half the angle a cell subtends at its range (codes are half cells)
+        stop_half = np.arctan(1.42 / stop_code.astype(np.float32))
+        inside = codes != self.OUTSIDE
+        cell_bearing, cell_code = bearing[inside], codes[inside].astype(np.int16)
+        hidden = ((np.abs(cell_bearing[:, None] - stop_bearing[None, :]) <= stop_half[None, :])
+                  & (stop_code[None, :] <= cell_code[:, None])).any(axis=1)
+        occluded = np.zeros(codes.shape, dtype=bool)
+        occluded[inside] = hidden
+        return occluded
 
     def _lookup_table(self) -> np.ndarray:
         """Log-odds change for (reading code, range code), both in half cells.
@@ -254,16 +298,24 @@ class LogOddsMap:
         no_echo = self.model.max_range - self.model.max_range_margin
         if clear_to is None:
             clear_to = np.full(len(ranges), np.nan)
-        for (cx, cy, heading, reading, clear) in zip(ix, iy, sensor_poses[:, 2], ranges,
-                                                     clear_to):
-            dr, dc, codes = self._cones[int(round(math.degrees(heading))) % 360]
-            if reading >= no_echo and math.isfinite(clear):
+        silent = np.asarray(ranges) >= no_echo
+        before = None
+        if self.model.occlusion is not None and silent.any():
+            before = self.grid.window(wx0, wy0, window.shape[0], window.shape[1])
+        for (cx, cy, heading, reading, clear, quiet) in zip(ix, iy, sensor_poses[:, 2], ranges,
+                                                            clear_to, silent):
+            k = int(round(math.degrees(heading))) % 360
+            dr, dc, codes = self._cones[k]
+            if quiet and math.isfinite(clear):
                 row = self._clear_lut[min(int(round(max(float(clear), 0.0) / res * 2)), top)]
             else:
                 row = self._lut[min(int(round(float(reading) / res * 2)), top)]
             r0, c0 = cy - wy0 + dr, cx - wx0 + dc
             h, w = codes.shape
-            window[r0:r0 + h, c0:c0 + w] += row[codes]
+            delta = row[codes]
+            if quiet and before is not None:
+                delta[self._occluded(k, codes, before[r0:r0 + h, c0:c0 + w])] = 0.0
+            window[r0:r0 + h, c0:c0 + w] += delta
         return window, (wx0, wy0)
 
     def add_scan(self, sensor_poses: np.ndarray, ranges: np.ndarray,
