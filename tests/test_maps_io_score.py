@@ -15,8 +15,8 @@ from scipy import ndimage
 from blocks.core.errors import SemmapError
 from blocks.maps.mapio import (MapError, OccupancyMap, occupancy_map_from_world, read_map,
                                write_map)
-from blocks.maps.score import (METRIC_KEYS, VISIBLE_KEYS, TrajectoryError, read_path_csv,
-                               score_map, visible_from_path)
+from blocks.maps.score import (METRIC_KEYS, VISIBLE_KEYS, TrajectoryError, free_floor,
+                               read_path_csv, score_map, visible_from_path)
 from blocks.maps.score import _ground_truth as score_ground_truth
 from sim2d.world import World, load_world
 from sim2d.worlds import world_path
@@ -181,6 +181,22 @@ def test_a_round_tripped_coarser_map_still_scores_well(worlds, tmp_path):
     assert s["precision"] == 1.0 and s["recall"] == 1.0
     assert s["free_coverage"] > 0.9 and s["false_free"] == 0.0
     assert s["map_resolution_m"] == 0.1 and s["world_resolution_m"] == 0.05
+
+
+def test_free_floor_shows_where_the_coverage_is_lost(worlds):
+    """The mask behind ``free_coverage``: a map that never saw the west half of the office
+    calls none of it free, and the mask's share is the score's."""
+    world = worlds["office"]
+    own = occupancy_map_from_world(world)
+    half = own.occupancy.copy()
+    half[:, : half.shape[1] // 2] = 0.5  # unknown
+    m = OccupancyMap(half, own.resolution, own.origin)
+    truth, reachable, free = free_floor(m, world)
+    assert free.shape == reachable.shape == truth.occupancy.shape and not (free & ~reachable).any()
+    columns = np.nonzero(reachable)[1]
+    assert free[:, : half.shape[1] // 2 - 1].sum() == 0 and free.sum() > 0
+    assert free.sum() / reachable.sum() == pytest.approx(score_map(m, world)["free_coverage"])
+    assert 0.2 < free.sum() / reachable.sum() < 0.8 and columns.min() < half.shape[1] // 2
 
 
 def test_a_shifted_map_loses_precision_and_recall(worlds):

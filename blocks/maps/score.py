@@ -73,7 +73,8 @@ from .mapio import OccupancyMap, occupancy_map_from_world
 if TYPE_CHECKING:
     from sim2d.world import World
 
-__all__ = ["METRIC_KEYS", "VISIBLE_KEYS", "TrajectoryError", "reachable_floor", "read_path_csv",
+__all__ = ["METRIC_KEYS", "VISIBLE_KEYS", "TrajectoryError", "free_floor", "reachable_floor",
+           "read_path_csv",
            "score_map", "sight_from_cells", "visible_from_path"]
 
 #: The keys of :func:`score_map`'s result, in order (stable: scripts and JSON rely on them).
@@ -225,21 +226,19 @@ def score_map(m: OccupancyMap, world: World, tolerance: float = 0.25,
     wall_free = inside & free[iy, ix]
 
     # free coverage, per reachable free cell
-    rx, ry = _centres(reachable, res_w, truth.origin)
-    iy, ix, inside = _cell_index(rx, ry, m.origin, res_m, free.shape)
-    floor_free = inside & free[iy, ix]
+    floor_free = _floor_free(m, free, truth, reachable)
 
     recall = _share(int(wall_found.sum()), len(fx))
     result: dict[str, float | int] = {
         "precision": precision,
         "recall": recall,
         "f1": _harmonic(precision, recall),
-        "free_coverage": _share(int(floor_free.sum()), len(rx)),
+        "free_coverage": _share(int(floor_free.sum()), len(floor_free)),
         "false_free": _share(int(wall_free.sum()), len(fx)),
         "map_occupied_cells": int(occupied.sum()),
         "map_free_cells": int(free.sum()),
         "facing_wall_cells": len(fx),
-        "reachable_free_cells": len(rx),
+        "reachable_free_cells": len(floor_free),
         "tolerance_m": float(tolerance),
         "map_resolution_m": res_m,
         "world_resolution_m": res_w,
@@ -406,6 +405,28 @@ def sight_from_cells(walls: np.ndarray, iy: np.ndarray, ix: np.ndarray, max_rang
         first = np.where(hit.any(axis=1), hit.argmax(axis=1), offsets.shape[1] - 1)
         seen[cells[steps <= first[:, None]]] = True
     return seen.reshape(h + 2 * pad, w + 2 * pad)[pad:-pad, pad:-pad].copy()
+
+
+def _floor_free(m: OccupancyMap, free: np.ndarray, truth: OccupancyMap,
+                reachable: np.ndarray) -> np.ndarray:
+    """For each reachable cell of the truth grid (``np.nonzero`` order), whether the map
+    calls it free."""
+    rx, ry = _centres(reachable, float(truth.resolution), truth.origin)
+    iy, ix, inside = _cell_index(rx, ry, m.origin, float(m.resolution), free.shape)
+    return inside & free[iy, ix]
+
+
+def free_floor(m: OccupancyMap, world: World) -> tuple[OccupancyMap, np.ndarray, np.ndarray]:
+    """Where a map's ``free_coverage`` is won and lost: the world's wall grid, its reachable
+    floor, and the part of that floor the map calls free (bool masks on the wall grid).
+
+    ``free_mask.sum() / reachable.sum()`` is :func:`score_map`'s ``free_coverage``.
+    """
+    truth, reachable, _ = _ground_truth(world)
+    _, free, _ = m.classes()
+    free_mask = np.zeros_like(reachable, dtype=bool)
+    free_mask[reachable] = _floor_free(m, free, truth, reachable)
+    return truth, reachable, free_mask
 
 
 def reachable_floor(world: World) -> tuple[OccupancyMap, np.ndarray]:
