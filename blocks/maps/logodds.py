@@ -200,10 +200,11 @@ class LogOddsMap:
         if 2 * self._reach >= self.OUTSIDE:
             raise ValueError(f"max_range / resolution is too large for the range codes "
                              f"({self.model.max_range} m at {resolution} m per cell)")
-        cones = [self._cone_cells(math.radians(k)) for k in range(360)]
-        self._cones = [cone[:3] for cone in cones]
         # bearings only where a silent reading may be stopped (they cost a table per degree)
-        self._bearings = [cone[3] for cone in cones] if self.model.occlusion is not None else []
+        occludes = self.model.occlusion is not None
+        cones = [self._cone(math.radians(k), bearings=occludes) for k in range(360)]
+        self._cones = [cone[:3] for cone in cones]
+        self._bearings = [cone[3] for cone in cones]
         self._lut = self._lookup_table()
         # clear-only rows: a reading without an echo that clears up to a given range
         ranges = np.arange(256) / 2 * resolution
@@ -211,26 +212,25 @@ class LogOddsMap:
                                    np.float32(self.model.l_free), np.float32(0.0))
         self._clear_lut[:, self.OUTSIDE] = 0.0
 
-    def _cone(self, heading: float) -> tuple[int, int, np.ndarray]:
-        """Range codes (half cells) of the cells in a cone at ``heading``, cropped to it."""
-        dr, dc, codes, _ = self._cone_cells(heading)
-        return dr, dc, codes
-
-    def _cone_cells(self, heading: float) -> tuple[int, int, np.ndarray, np.ndarray]:
-        """:meth:`_cone` and, for the same cells, each one's bearing off the axis (rad)."""
+    def _cone(self, heading: float, bearings: bool = False
+              ) -> tuple[int, int, np.ndarray, np.ndarray | None]:
+        """Range codes (half cells) of the cells in a cone at ``heading``, cropped to it, and
+        with ``bearings`` each one's bearing off the axis (rad; else None)."""
         n = self._reach
         offsets = np.arange(-n, n + 1, dtype=np.float64)
         dx, dy = np.meshgrid(offsets, offsets)
         rho = np.hypot(dx, dy)
         along = dx * math.cos(heading) + dy * math.sin(heading)
-        across = -dx * math.sin(heading) + dy * math.cos(heading)
         half = math.radians(self.model.cone_deg) / 2
         inside = ((along >= rho * math.cos(half)) & (rho <= n)) | (rho == 0)
         codes = np.where(inside, np.round(rho * 2), self.OUTSIDE).astype(np.uint8)
         rows, cols = np.nonzero(inside)
         r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
-        bearing = np.arctan2(across, along).astype(np.float32)
-        return r0 - n, c0 - n, codes[r0:r1, c0:c1].copy(), bearing[r0:r1, c0:c1].copy()
+        bearing = None
+        if bearings:
+            across = -dx * math.sin(heading) + dy * math.cos(heading)
+            bearing = np.arctan2(across[r0:r1, c0:c1], along[r0:r1, c0:c1]).astype(np.float32)
+        return r0 - n, c0 - n, codes[r0:r1, c0:c1].copy(), bearing
 
     def _occluded(self, heading_index: int, codes: np.ndarray,
                   log_odds: np.ndarray) -> np.ndarray:
@@ -245,7 +245,8 @@ class LogOddsMap:
             return np.zeros(codes.shape, dtype=bool)
         bearing = self._bearings[heading_index]
         stop_bearing, stop_code = bearing[stop], codes[stop].astype(np.int16)
-        # half the angle a cell subtends at its range (codes are half cells)
+        # half the angle a cell subtends at its range: half its diagonal (0.71 cells) over
+        # its range (code / 2 cells)
         stop_half = np.arctan(1.42 / stop_code.astype(np.float32))
         inside = codes != self.OUTSIDE
         cell_bearing, cell_code = bearing[inside], codes[inside].astype(np.int16)

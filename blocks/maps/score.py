@@ -74,8 +74,7 @@ if TYPE_CHECKING:
     from sim2d.world import World
 
 __all__ = ["METRIC_KEYS", "VISIBLE_KEYS", "TrajectoryError", "free_floor", "reachable_floor",
-           "read_path_csv",
-           "score_map", "sight_from_cells", "visible_from_path"]
+           "read_path_csv", "score_map", "sight_from_cells", "visible_from_path"]
 
 #: The keys of :func:`score_map`'s result, in order (stable: scripts and JSON rely on them).
 METRIC_KEYS = ("precision", "recall", "f1", "free_coverage", "false_free",
