@@ -249,7 +249,8 @@ def test_a_long_frontier_still_there_after_a_goal_is_reached_is_visited_along_it
     With ``seen_radius`` 0 the whole frontier goes with the goal at its middle."""
     def goals_visited(seen_radius: float) -> list[float]:
         explorer = FrontierExplorer(corridor_open_along_its_side, GUARD,
-                                    ExploreParams(spin_rate=3.0, seen_radius=seen_radius))
+                                    ExploreParams(spin_rate=3.0, seen_radius=seen_radius,
+                                                  end_seen_radius=0.0))
         assert run(explorer, PointRobot(7.0, 1.5), 3000) is not None
         assert explorer.result.end_reason == "explored"
         return [e["goal"][0] for e in explorer.result.log if "goal" in e]
@@ -259,6 +260,36 @@ def test_a_long_frontier_still_there_after_a_goal_is_reached_is_visited_along_it
     seen = 3.0 + 0.2  # seen_radius, and a cell
     assert all(min(abs(x - g) for g in goals) <= seen for x in np.arange(1.05, 13.0, 0.1)), goals
     assert len(goals) <= 4, goals  # ...and not from every metre of it
+
+
+def corridor_open_along_its_side_and_at_its_end() -> OccupancyMap:
+    """:func:`corridor_open_along_its_side` with a 0.8 m gap in its east wall as well (y
+    1.1..1.9): a second frontier, short and apart from the long one."""
+    m = corridor_open_along_its_side()
+    p = m.occupancy.copy()
+    h, w = p.shape
+    y, x = np.mgrid[0:h, 0:w]
+    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    p[(xc > 12.9) & (xc < 13.3) & (yc > 1.1) & (yc < 1.9)] = FREE
+    return OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+
+
+def test_a_long_frontier_is_looked_at_along_its_length_once_nothing_else_is_left():
+    """``end_seen_radius``: its middle, then the other frontier, as without it; then, with
+    nothing else left, the long one's parts, before the floor counts as explored."""
+    explorer = FrontierExplorer(corridor_open_along_its_side_and_at_its_end, GUARD,
+                                ExploreParams(spin_rate=3.0, end_seen_radius=3.0))
+    assert run(explorer, PointRobot(7.0, 1.5), 4000) is not None
+    assert explorer.result.end_reason == "explored"
+    log = explorer.result.log
+    switch = next(i for i, e in enumerate(log) if "long frontiers" in e)
+    before = [e["goal"] for e in log[:switch] if "goal" in e]
+    after = [e["goal"][0] for e in log[switch:] if "goal" in e]
+    assert len(before) == 2 and before[1][0] > 11.5, before  # the middle, then the gap
+    goals = [g[0] for g in before] + after
+    seen = 3.0 + 0.2  # end_seen_radius, and a cell
+    assert all(min(abs(x - g) for g in goals) <= seen for x in np.arange(1.05, 13.0, 0.1)), goals
+    assert 1 <= len(after) <= 3, after
 
 
 def corridor_with_floor_seen_through_its_wall() -> OccupancyMap:
@@ -285,6 +316,15 @@ def test_a_long_frontier_seen_through_a_wall_is_not_visited_along_its_length():
     goals = [e["goal"] for e in explorer.result.log if "goal" in e]
     assert explorer.result.end_reason == "explored"
     assert len(goals) == 1, goals
+
+
+def test_at_the_end_a_long_frontier_seen_through_a_wall_is_still_not_visited():
+    explorer = FrontierExplorer(corridor_with_floor_seen_through_its_wall, GUARD,
+                                ExploreParams(spin_rate=3.0, end_seen_radius=3.0))
+    assert run(explorer, PointRobot(7.0, 1.5), 3000) is not None
+    assert explorer.result.end_reason == "explored"
+    assert any("long frontiers" in e for e in explorer.result.log)
+    assert len([e for e in explorer.result.log if "goal" in e]) == 1
 
 
 def test_a_frontier_whose_way_keeps_failing_is_given_up_and_counted():

@@ -313,6 +313,11 @@ class FrontierExploration(Block):
                                          "whole frontier goes with its goal; "
                                          "docs/exploration.md has the measured trade)",
                              unit="m", min=0.0),
+        "end_seen_radius": Param(float, 3.0, "seen_radius from when no other frontier is "
+                                             "left, before the floor counts as explored: "
+                                             "a long frontier dropped with the goal at its "
+                                             "middle is looked at along its length (0: "
+                                             "never)", unit="m", min=0.0),
         "stop_distance": Param(float, 0.3, "an echo this close in front of the body (or "
                                            "behind it when backing) fails the way", unit="m",
                                min=0.0),
@@ -363,6 +368,7 @@ class FrontierExploration(Block):
                                      door_narrow=self.p.door_narrow,
                                      door_underfoot=self.p.door_underfoot,
                                      seen_radius=self.p.seen_radius,
+                                     end_seen_radius=self.p.end_seen_radius,
                                      min_frontier=self.p.min_frontier,
                                      reach=self.p.reach, gain_weight=self.p.gain_weight,
                                      stall_time=self.p.stall_time,

@@ -184,6 +184,13 @@ class ExploreParams:
         (:func:`~blocks.explore.frontiers.frontier_goals`' ``walls``).
         0 (the default): the whole frontier goes with its reached goal
         (docs/exploration.md has the measured trade).
+    end_seen_radius
+        ``seen_radius`` from the moment no other frontier is left, before the
+        floor counts as explored: a long frontier dropped whole with the goal
+        at its middle (a corridor's open end seen along its side) is the
+        rest of the floor, and looking along it then costs nothing the
+        exploration had to give up.  0: never (the default before issue 20's
+        school-23 ended ``explored`` with a corridor's open end left).
     max_failures, stuck_radius
         This many failed ways in a row, with no goal reached between and all
         within ``stuck_radius`` (m) of where the first of them failed, and
@@ -235,6 +242,7 @@ class ExploreParams:
     max_attempts: int = 2
     forget_radius: float = 0.7
     seen_radius: float = 0.0
+    end_seen_radius: float = 3.0
     max_failures: int = 8
     stuck_radius: float = 2.0
     hand_backs: int = 3
@@ -364,6 +372,7 @@ class FrontierExplorer:
         self._given_up: list[tuple[float, float]] = []
         self._given_up_left = 0
         self._retry_rounds = 0
+        self._seen_radius = self.p.seen_radius  # end_seen_radius once the rest is done
         self._looks: list[tuple[float, float]] = []  # where it looked round
         self._spun = self._heading = 0.0
         self._turns = TurnWatch(stall_time=self.p.stall_time)  # a look round that cannot turn
@@ -711,10 +720,10 @@ class FrontierExplorer:
         # from where the robot sees it: a frontier drawn outside the building by beams that
         # passed a wall at a grazing angle is never seen from inside, one part or another
         reached = [xy for xy in self._forgotten if not self._near(xy, self._given_up)] \
-            if self.p.seen_radius > 0 else []
+            if self._seen_radius > 0 else []
         rest = [part for g, _ in goals
                 if self._near(g.goal, reached) and not self._near(g.goal, self._given_up)
-                for part in unseen_parts(g.frontier, reached, self.p.seen_radius,
+                for part in unseen_parts(g.frontier, reached, self._seen_radius,
                                          self.p.min_frontier, occupancy.resolution)]
         goals = [(g, grid) for g, grid in goals + (choose(rest, occupancy.classes()[0])
                                                    if rest else [])
@@ -764,6 +773,11 @@ class FrontierExplorer:
         if self._given_up_left and self._retry_rounds < self.p.retry_given_up:
             self._retry_given_up(time)
             return False
+        if self.p.end_seen_radius > self._seen_radius:
+            # the rest is done: long frontiers still there are looked at along their length
+            self._seen_radius = self.p.end_seen_radius
+            self.result.log.append({"t": round(time, 1), "long frontiers": self._seen_radius})
+            return self._plan(time, pose)
         self.result.frontiers_given_up = self._given_up_left
         # frontiers left behind failed ways are floor not mapped: say so, not "explored"
         self._end(time, "frontiers given up" if self._given_up_left else "explored")
