@@ -262,16 +262,20 @@ def test_a_long_frontier_still_there_after_a_goal_is_reached_is_visited_along_it
     assert len(goals) <= 4, goals  # ...and not from every metre of it
 
 
+def painted(m: OccupancyMap, *boxes: tuple[float, float, float, float, float]) -> OccupancyMap:
+    """``m`` with the cells inside each box (x0, x1, y0, y1, value) set to that value."""
+    p = m.occupancy.copy()
+    y, x = np.mgrid[0:p.shape[0], 0:p.shape[1]]
+    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
+    for x0, x1, y0, y1, value in boxes:
+        p[(xc > x0) & (xc < x1) & (yc > y0) & (yc < y1)] = value
+    return OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+
+
 def corridor_open_along_its_side_and_at_its_end() -> OccupancyMap:
     """:func:`corridor_open_along_its_side` with a 0.8 m gap in its east wall as well (y
     1.1..1.9): a second frontier, short and apart from the long one."""
-    m = corridor_open_along_its_side()
-    p = m.occupancy.copy()
-    h, w = p.shape
-    y, x = np.mgrid[0:h, 0:w]
-    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
-    p[(xc > 12.9) & (xc < 13.3) & (yc > 1.1) & (yc < 1.9)] = FREE
-    return OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+    return painted(corridor_open_along_its_side(), (12.9, 13.3, 1.1, 1.9, FREE))
 
 
 def test_a_long_frontier_is_looked_at_along_its_length_once_nothing_else_is_left():
@@ -296,14 +300,8 @@ def corridor_with_floor_seen_through_its_wall() -> OccupancyMap:
     """A closed 12 x 1.6 m corridor (x 1..13, y 1..2.6) with a strip of free floor 0.4 m
     wide just outside its north wall (what beams passing the wall at a grazing angle
     clear) and unknown beyond: a frontier 12 m long that no place inside sees."""
-    m = corridor_open_along_its_side()
-    p = m.occupancy.copy()
-    h, w = p.shape
-    y, x = np.mgrid[0:h, 0:w]
-    xc, yc = (x + 0.5) * RES, (y + 0.5) * RES
-    p[(xc > 0.8) & (xc < 13.2) & (yc > 2.6) & (yc < 2.8)] = OCC
-    p[(xc > 1.0) & (xc < 13.0) & (yc > 2.8) & (yc < 3.2)] = FREE
-    return OccupancyMap(p, RES, (0.0, 0.0, 0.0))
+    return painted(corridor_open_along_its_side(), (0.8, 13.2, 2.6, 2.8, OCC),
+                   (1.0, 13.0, 2.8, 3.2, FREE))
 
 
 def test_a_long_frontier_seen_through_a_wall_is_not_visited_along_its_length():
