@@ -26,9 +26,9 @@ bumper is pressed or the robot stalls (it asks to move and odometry says it
 does not: it then undoes its last motion for a moment), or when it makes no
 progress along the way.  What stopped it goes on the planning grid, so the
 next way goes round it.  A goal that failed ``max_attempts`` times, or
-was reached, is not chosen again (with ``seen_radius`` set, a long frontier
-still there after a goal near it was reached is approached again where it
-is farther than that from it).  Ways that keep failing in one spot mean
+was reached, is not chosen again: a long frontier still there after a goal
+near it was reached is approached again where it is farther than
+``seen_radius`` from it, or, once nothing else is left, ``end_seen_radius``.  Ways that keep failing in one spot mean
 the robot is wedged there: it backs out along its own track.
 
 A way through a doorway (:mod:`blocks.navigate.doorway`) is driven in three
@@ -189,8 +189,7 @@ class ExploreParams:
         floor counts as explored: a long frontier dropped whole with the goal
         at its middle (a corridor's open end seen along its side) is the
         rest of the floor, and looking along it then costs nothing the
-        exploration had to give up.  0: never (the default before issue 20's
-        school-23 ended ``explored`` with a corridor's open end left).
+        exploration had to give up.  0: never.
     max_failures, stuck_radius
         This many failed ways in a row, with no goal reached between and all
         within ``stuck_radius`` (m) of where the first of them failed, and
