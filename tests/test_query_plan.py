@@ -96,6 +96,9 @@ ANSWERS = [
 ERRORS = [
     ("go to the pharmacy", ["this map has no pharmacy", "Known places:"]),
     ("go to office 104", ["no place named OFFICE 104", "OFFICE 103"]),
+    # a number on another kind of room's sign is no answer ("room 103" is: see PLANS)
+    ("go to lab 103", ["no place named LAB 103", "OFFICE 103"]),
+    ("take me to meeting room 103", ["no place named MEETING ROOM 103"]),
     ("fetch the medicine", ["medicine belongs in a pharmacy", "no pharmacy"]),
     ("fetch the laptop", ["whose laptop?"]),
     ("take the mail", ["where should the mail go?"]),

@@ -171,9 +171,10 @@ class _Grounder:
             found = [pid for pid, info in self.qm.places.items()
                      if info.name and info.name.upper() == m.concept.upper()]
             if not found:  # "room 103": the place whose sign carries that number
-                number = m.concept.split()[-1]
+                *words, number = m.concept.upper().split()
                 found = [pid for pid, info in self.qm.places.items()
-                         if info.name and info.name.split()[-1] == number]
+                         if info.name and info.name.split()[-1] == number
+                         and self._same_kind_of_room(words, info.name.split()[:-1])]
                 found = found if len(found) == 1 else []
             if not found:
                 raise self.fail(f"this map has no place named {m.concept}")
@@ -194,6 +195,22 @@ class _Grounder:
                 raise self.fail(f"this map has no {self._concept_label(m)}")
             return [(pid, f"{_a(self._concept_label(m))}") for pid in found]
         raise self.fail(f'"{m.text}" is {_a(m.kind)}, not a place or a person')
+
+    def _same_kind_of_room(self, asked: list[str], signed: list[str]) -> bool:
+        """Whether a room asked for by number with the words ``asked`` ("ROOM", "LAB") may
+        be the one whose sign has ``signed`` before that number ("OFFICE").
+
+        Why: "room 103" means whatever room carries 103, but "lab 2" is no reason to go
+        to STORE 2; a synonym ("laboratory 2" for LAB 2) is the same kind of room.
+        """
+        if not asked or asked == ["ROOM"] or asked == signed:
+            return True
+        if not signed:
+            return False
+        lexicon = self.kb.lexicon
+        mine = lexicon.resolve(" ".join(asked), kinds={"place"}, fuzzy=False)
+        theirs = lexicon.resolve(" ".join(signed), kinds={"place"}, fuzzy=False)
+        return mine is not None and theirs is not None and mine.iri == theirs.iri
 
     def people_places(self, m: Mention) -> list[tuple[str, str]]:
         """Where a person or the people of a role are (now, or at the request's time)."""
