@@ -338,3 +338,31 @@ def test_contacts_are_named_by_the_part_of_the_body_and_the_motion(tmp_path):
     found = contacts(run)
     assert [(c["part"], c["motion"]) for c in found] == [("front-right", "ahead"),
                                                          ("rear-left", "backing")]
+
+
+def ranges_to_wall(a, b, max_range: float = 4.0) -> np.ndarray:
+    """The ATRV's readings along each sonar's axis of the wall from ``a`` to ``b``
+    (robot frame): enough to place a wall by the body."""
+    out = np.full(len(ATRV.sonar_names), max_range)
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    for k, (x, y, angle) in enumerate(ATRV.sonar_mounts):
+        d, e = np.array([math.cos(angle), math.sin(angle)]), b - a
+        det = d[0] * -e[1] + e[0] * d[1]
+        if abs(det) < 1e-12:
+            continue
+        t, s = np.linalg.solve(np.column_stack([d, -e]), a - np.array([x, y]))
+        if t > 0 and 0 <= s <= 1:
+            out[k] = min(max_range, t)
+    return out
+
+
+@pytest.mark.parametrize("wall, way", [
+    (((0.27, -0.27), (-2.0, -0.67)), -1),  # askew, touching by the front-right corner: back
+    (((-0.27, -0.27), (2.0, -0.67)), 1),   # askew, by the rear-right corner: ahead
+    (((2.0, -0.3), (-2.0, -0.3)), 1),      # flush along the right side: ahead
+])
+def test_too_close_to_turn_the_robot_eases_out_by_the_end_farther_from_the_wall(wall, way):
+    guard = SonarGuard.for_robot(ATRV)
+    ranges = ranges_to_wall(*wall)
+    assert guard.blocked(ranges, 0.0, 0.8) == "turning"
+    assert guard.ease_direction(ranges) == way

@@ -950,3 +950,39 @@ def test_a_look_round_that_cannot_turn_counts_as_taken():
             break
     assert explorer.result.end_reason == "explored" and 50 <= tick <= 60
     assert [e["look round"] for e in explorer.result.log if "look round" in e] == ["cannot turn"]
+
+
+@pytest.mark.parametrize("by_ends", [True, False])
+def test_flush_along_a_wall_with_its_way_behind_it_eases_out_ahead_not_backing_blind(by_ends):
+    """Too close to the wall on its right to turn round, the robot must move straight
+    first.  By the ends (``ease_by_ends``) it goes ahead, where its sonars look, and turns
+    once past the wall's end; by the nearest echo (the default until measured) it would
+    back, leading with a rear corner that may have no sonar looking past it, and here,
+    where that is refused, it stays."""
+    guard = SonarGuard.for_robot(ATRV)
+    beside = [ATRV.sonar_names.index(n) for n in ("RtFr2", "Rt1", "Rt2", "BkRt")]
+
+    def ranges(pose):
+        r = np.full(16, 4.0)
+        if pose[0] > 1.7:  # facing west along a wall that ends at x 1.7
+            r[beside] = 0.05
+        return r
+
+    params = ExploreParams(monitor=MonitorParams(), bump_memory=0.0, ease_by_ends=by_ends)
+    explorer = FrontierExplorer(lambda: room_map(), guard, params)
+    robot = PointRobot(2.0, 3.0, math.pi)  # the opening is behind it, east
+    path = [robot.pose.copy()]
+    for tick in range(60):
+        out = explorer.step(0.1 * tick, robot.pose, ranges(robot.pose), follower_done=True)
+        if out is None:
+            break
+        robot.move(*out)
+        path.append(robot.pose.copy())
+    path = np.array(path)
+    pinned = path[:, 0] > 1.7
+    if not by_ends:
+        assert pinned.all()  # the nearest echo is ahead of the middle: never out
+        return
+    assert pinned[0] and not pinned[-1]  # it got out
+    assert np.all(np.diff(path[: np.argmin(pinned) + 1, 0]) <= 1e-9)  # ahead, never back
+    assert abs(math.remainder(path[-1, 2] - math.pi, 2 * math.pi)) > 0.3  # and turned

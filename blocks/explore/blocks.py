@@ -300,6 +300,11 @@ class FrontierExploration(Block):
                                              "straddle the way (false: a way's first 0.35 m "
                                              "is not looked at for doorways; "
                                              "docs/exploration.md has the measured trade)"),
+        "ease_by_ends": Param(bool, False, "too close to something to turn, move straight "
+                                           "out by the end of the body farther from the "
+                                           "echoes, ahead on a tie (false: by the nearest "
+                                           "echo, and a pinned robot backs; docs/"
+                                           "exploration.md)"),
         "cruise": Param(float, 0.45, "speed on the way to a frontier", unit="m/s", min=0.01),
         "min_frontier": Param(float, 0.8, "ignore frontiers shorter than this", unit="m",
                               min=0.0),
@@ -367,6 +372,7 @@ class FrontierExploration(Block):
         self._params = ExploreParams(radius=self.p.radius, tight_radius=self.p.tight_radius,
                                      door_narrow=self.p.door_narrow,
                                      door_underfoot=self.p.door_underfoot,
+                                     ease_by_ends=self.p.ease_by_ends,
                                      seen_radius=self.p.seen_radius,
                                      end_seen_radius=self.p.end_seen_radius,
                                      min_frontier=self.p.min_frontier,

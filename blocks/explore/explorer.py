@@ -111,7 +111,11 @@ class ExploreParams:
         an echo that stops the robot is put there too.  0 remembers nothing.
     nudge_speed, nudge_time
         Too close to something to turn on the spot, the robot first eases
-        straight away from it at this speed, for at most this long (s) a way.
+        straight out at this speed, for at most this long (s) a way: away
+        from the nearest echo, or with ``ease_by_ends`` by the end of the body
+        farther from the echoes around it (backing from a front corner's,
+        ahead from a rear corner's or along a wall), else the other way if
+        the guard refuses that one.
     monitor
         The settings of the collision monitor
         (:mod:`blocks.navigate.collision_monitor`) that stands between this
@@ -124,12 +128,19 @@ class ExploreParams:
         one bump, not one a tick: the monitor keeps the robot from pushing on
         into what it touches, and a robot pressed against a wall by its side
         may still drive along it; failing every new way at once would end the
-        run ``stuck`` where it is not.  For the same reason a back-off goes on
-        (up to ``unpin_time``) while the robot could turn neither way: pressed
-        flush against a wall by its side, any turn swings a corner into it,
-        and each way planned from there would fail at once.
+        run ``stuck`` where it is not.  For the same reason, after a back-off,
+        a robot that could turn neither way moves straight on along what pins
+        it (up to ``unpin_time``): pressed flush against a wall by its side,
+        any turn swings a corner into it, and each way planned from there
+        would fail at once.  It backs; with ``ease_by_ends`` it goes out by
+        the end of the body farther from the echoes, ahead if they are as
+        near to either end (the sonars cover the front; a rear corner may
+        have none looking past it).
     unpin_time
         See ``monitor``.
+    ease_by_ends
+        See ``nudge_speed`` and ``monitor`` (off by default until measured on
+        the hour-long runs).
     retry_given_up
         When no frontier is left but those given up after failed ways, try
         them again, up to this many rounds: the map and the robot's place
@@ -273,6 +284,7 @@ class ExploreParams:
     monitor: MonitorParams | None = None
     held_time: float = 0.8
     unpin_time: float = 8.0
+    ease_by_ends: bool = False
     retry_given_up: int = 0
 
 
@@ -355,6 +367,7 @@ class FrontierExplorer:
         self._held = HeldClock()  # by the monitor
         self._held_for = 0.0
         self._unpin_until = 0.0
+        self._unpin_speed = -self.p.back_off_speed
         self._door_pursuit = replace(self.pursuit, cruise=min(self.p.door_speed,
                                                              self.pursuit.cruise))
         self._occupancy: Any = None  # the map the last goals were chosen on
@@ -991,13 +1004,28 @@ class FrontierExplorer:
         return None if not len(inside) else local[inside[np.argmin(reach[inside])]]
 
     def _nudge(self, ranges: np.ndarray) -> tuple[float, float] | None:
-        """A slow straight move away from the nearest echo, if the guard allows it."""
-        points = self.guard.echo_points(ranges)
+        """A slow straight move out of a spot too tight to turn in, if the guard allows it."""
+        if self.p.ease_by_ends:
+            v = self._easing(ranges)
+            return None if v is None else (v, 0.0)
+        points = self.guard.echo_points(ranges)  # away from the nearest echo
         if len(points) == 0:
             return None
         nearest = points[int(np.argmin(np.hypot(points[:, 0], points[:, 1])))]
         v = -self.p.nudge_speed if nearest[0] > 0 else self.p.nudge_speed
         return None if self._blocked(ranges, v, 0.0) else (v, 0.0)
+
+    def _easing(self, ranges: np.ndarray) -> float | None:
+        """The speed of a slow straight move out of a tight spot: by the end of the body
+        farther from the echoes around it (:meth:`SonarGuard.ease_direction`), else the
+        other way; None if the guard allows neither."""
+        if len(self.guard.echo_points(ranges)) == 0:
+            return None
+        first = self.guard.ease_direction(ranges) * self.p.nudge_speed
+        for v in (first, -first):
+            if not self._blocked(ranges, v, 0.0):
+                return v
+        return None
 
     def _remember_blocked(self, pose: np.ndarray, ranges: np.ndarray, v: float) -> None:
         """Put the echo that stopped the robot on the planning grid (the map may have missed it).
@@ -1033,9 +1061,14 @@ class FrontierExplorer:
             return 0.0, 0.0
         if time >= self._back_until:
             self.phase = "plan"
+            ease = None
             if self.p.monitor is not None and self._pinned(ranges):
+                ease = self._easing(ranges) if self.p.ease_by_ends else -self.p.back_off_speed
+            if ease is not None:
                 self.phase, self._unpin_until = "unpin", time + self.p.unpin_time
-                self.result.log.append({"t": round(time, 1), "unpin": "backing along the wall",
+                self._unpin_speed = math.copysign(self.p.back_off_speed, ease)
+                how = "easing ahead" if ease > 0 else "backing"
+                self.result.log.append({"t": round(time, 1), "unpin": f"{how} along the wall",
                                         "at": [round(float(x), 2) for x in self._last[:2]]})
             return 0.0, 0.0
         return v, 0.0
@@ -1047,8 +1080,9 @@ class FrontierExplorer:
 
     def _unpin(self, time: float, ranges: np.ndarray,
                bumpers: np.ndarray | None) -> tuple[float, float]:
-        """Back straight along what pins the robot until it can turn (or for ``unpin_time``)."""
-        v = -self.p.back_off_speed
+        """Move straight along what pins the robot until it can turn (or for ``unpin_time``),
+        out by the end of the body farther from it (see :meth:`_easing`)."""
+        v = self._unpin_speed
         touching = self._touching(bumpers, v)
         if time >= self._unpin_until or touching or self._blocked(ranges, v, 0.0) \
                 or not self._pinned(ranges):

@@ -197,6 +197,45 @@ class SonarGuard:
         hit = ((arc_gap[1:] <= margin) & (arc_gap[1:] < arc_gap[0] - 1e-4)).any(axis=1)
         return float(times[1:][np.argmax(hit)]) if hit.any() else math.inf
 
+    def ease_direction(self, ranges: np.ndarray, reach: float = 0.05, tie: float = 0.05) -> int:
+        """+1 to ease out of a tight spot ahead, -1 backing: by the end of the body farther
+        from the echoes around it.
+
+        Why: a robot too close to something to turn must first move straight, and which
+        way matters.  Pressed askew against a wall by one front corner, backing frees
+        that corner; by a rear corner, going ahead does.  Flush along a wall (the echoes
+        as near to either end) it goes ahead: the sonars cover the front, while a rear
+        corner may have no sonar looking past it.
+
+        The echoes counted are those a turn on the spot would sweep into, and those
+        up to ``reach`` (m) beyond (so the corners' own sonars count as much as the
+        side's, however many there are), or the nearest echo if none is that close.
+        An end's distance is along the body's axis, from its nearest echo; within
+        ``tie`` (m) the ends count as equal.
+
+        Examples
+        --------
+        >>> guard = SonarGuard(np.array([[0.2, -0.25, -1.2], [-0.2, -0.25, -1.9]]))
+        >>> guard.ease_direction(np.array([0.05, 4.0]))  # by the front-right corner
+        -1
+        >>> guard.ease_direction(np.array([4.0, 0.05]))  # by the rear-right corner
+        1
+        >>> guard.ease_direction(np.array([0.05, 0.05]))  # flush along the right side
+        1
+        """
+        points = self.echo_points(ranges)
+        if len(points) == 0:
+            return 1
+        x, y = points[:, 0], points[:, 1]
+        half_l, half_w = self.length / 2, self.width / 2
+        sweep = math.hypot(half_l, half_w) + self.turn_margin
+        near = ((np.abs(x) > half_l) | (np.abs(y) > half_w)) & (np.hypot(x, y) <= sweep + reach)
+        if not near.any():
+            near = np.hypot(x, y) == np.hypot(x, y).min()
+        front_gap = float(np.min(half_l - x[near]))
+        rear_gap = float(np.min(x[near] + half_l))
+        return -1 if rear_gap > front_gap + tie else 1
+
     def blocked(self, ranges: np.ndarray, v: float, w: float) -> str:
         """Why the command (v, w) would hit an echo: 'ahead', 'behind', 'turning', or ''.
 
