@@ -4,9 +4,11 @@ Views are sampled as in ``benchmarks/sign_detector.py`` (wall-following
 poses, tilt 0-25 deg, zoom 1-3), but on generated buildings, whose plates
 vary in size, colours, polarity and font (``sim2d/worlds/looks.py``): a share
 ``aimed`` of the views stands within 10 m in front of a sign and pans to it,
-the rest pan at random. Both detectors see the same frames:
-``detect_plates`` (the white-plate detector) and ``detect_any_plates``
-(``blocks/signs/detect_any.py``). Scored with ``match_detections``: recall
+the rest pan at random. The detectors see the same frames:
+``detect_plates`` (the white-plate detector), ``detect_any_plates``
+(``blocks/signs/detect_any.py``) and ``any+inside``, the latter with plates
+inside other edges found too (``AnyLookParams.inside_edges``). Scored with
+``match_detections``: recall
 over plates at least 6 px tall and 60 % visible, and the strict recall over
 those at least 12 px tall seen within 70 deg of head-on.
 
@@ -22,6 +24,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import sys
 import time
@@ -36,13 +39,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from sign_detector import STRICT, _aimed_pan, _wall_pose  # noqa: E402
 
 from blocks.signs.detect import detect_plates, match_detections  # noqa: E402
-from blocks.signs.detect_any import detect_any_plates  # noqa: E402
+from blocks.signs.detect_any import AnyLookParams, detect_any_plates  # noqa: E402
 from blocks.signs.types import CameraModel  # noqa: E402
 from sim2d.camera import CameraSpec, camera_pose, render, visible_signs  # noqa: E402
 from sim2d.world import load_world  # noqa: E402
 from sim2d.worlds.family import expand_worlds, generated_world  # noqa: E402
 
-DETECTORS = {"white": detect_plates, "any": detect_any_plates}
+DETECTORS = {"white": detect_plates, "any": detect_any_plates,
+             # the any-look detector with plates inside other edges found too (docs/signs.md)
+             "any+inside": functools.partial(detect_any_plates,
+                                             any_params=AnyLookParams(inside_edges=True))}
 
 
 def sample_views(worlds: str, per_world: int, seed: int = 0, aimed: float = 0.7) -> list[dict]:
@@ -115,11 +121,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     result = measure(sample_views(args.worlds, args.per_world, args.seed))
     print(f"{result['views']} views of {args.worlds}")
-    print(f"{'detector':10s} {'TP':>5s} {'FP':>5s} {'FN':>5s} {'recall':>7s} {'strict':>7s} {'ms':>7s}"
+    print(f"{'detector':11s} {'TP':>5s} {'FP':>5s} {'FN':>5s} {'recall':>7s} {'strict':>7s} {'ms':>7s}"
           "  per building: median recall, worst")
     for name in DETECTORS:
         r = result[name]
-        print(f"{name:10s} {r['true_positives']:5d} {r['false_positives']:5d} "
+        print(f"{name:11s} {r['true_positives']:5d} {r['false_positives']:5d} "
               f"{r['false_negatives']:5d} {r['recall']!s:>7s} {r['recall_strict']!s:>7s} "
               f"{r['ms_per_frame']:7.3f}  {r.get('building_recall_median')!s:>6s}, "
               f"{r.get('building_recall_worst')}")

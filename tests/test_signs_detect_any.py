@@ -165,3 +165,27 @@ def test_text_of_one_ink_lies_between_the_body_and_the_ink_and_books_do_not():
 
     assert spread(one_ink) < 0.05
     assert spread(books) > AnyLookParams().max_ink_spread
+
+
+def framed_room(sign: Sign, wall_rgb):
+    """:func:`room` with a 4 cm frame standing out of the wall 1 cm beyond each end of the
+    plate (a door's architrave, a pilaster): its edges run past the plate, top to bottom."""
+    edge = sign.width / 2 + 0.01
+    walls = [[-3.0, -7.0, WALL_X, -7.0], [WALL_X, -7.0, WALL_X, 7.0], [WALL_X, 7.0, -3.0, 7.0],
+             [-3.0, 7.0, -3.0, -7.0], [WALL_X, edge, WALL_X - 0.04, edge],
+             [WALL_X, -edge, WALL_X - 0.04, -edge]]
+    return dataclasses.replace(make_world(walls, signs=[sign]), colours={"wall": wall_rgb})
+
+
+@pytest.mark.parametrize("look", sorted(LOOKS))
+@pytest.mark.parametrize(("distance", "angle"), [(1.5, 0), (2.0, 20), (2.5, 35)])
+def test_a_plate_between_the_edges_of_a_frame_is_found_inside_them(look, distance, angle):
+    """The plate's outline touches the frame's edges, which reach the image's top and bottom:
+    taken whole, the outline is a wall's; the plate is what the edges enclose."""
+    sign = dataclasses.replace(plate(look), width=0.4)
+    img, model, truth = frame(framed_room(sign, LOOKS[look][2]), sign, distance, angle)
+    assert len(truth) == 1
+    inside = AnyLookParams(inside_edges=True)
+    tp, fp, fn, _ = match_detections(detect_outlined_plates(img, model, inside), truth)
+    assert (tp, fp, fn) == (1, 0, 0)
+    assert detect_outlined_plates(img, model) == []  # the default, until measured end to end

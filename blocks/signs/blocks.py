@@ -8,6 +8,8 @@ the hybrid map ``DIR/maps/hybrid.png``.
 """
 from __future__ import annotations
 
+import functools
+
 import csv
 import io
 import math
@@ -67,15 +69,22 @@ class Detector(Block):
                                               "outlined plates of any colour, light on dark or "
                                               "dark on light: blocks/signs/detect_any.py)",
                              choices=("any", "standard")),
+              "inside_edges": Param(bool, False, "with looks: any, also find plates whose "
+                                                 "outline touches other edges (a door "
+                                                 "frame's, a wall corner's) inside them "
+                                                 "(docs/signs.md)"),
               "keep_false_positives": Param(int, 5, "false-positive frames saved for "
                                                     "inspection (needs visible)", min=0)}
 
     def setup(self) -> None:
         from .detect import DetectorParams, detect_plates
-        from .detect_any import detect_any_plates
+        from .detect_any import AnyLookParams, detect_any_plates
         self._spec, _ = _camera_spec(self.p.robot)
         self._params = DetectorParams()
-        self._detect = detect_any_plates if self.p.looks == "any" else detect_plates
+        self._detect = detect_plates
+        if self.p.looks == "any":
+            looks = AnyLookParams(inside_edges=self.p.inside_edges)
+            self._detect = functools.partial(detect_any_plates, any_params=looks)
 
     def reset(self) -> None:
         self._frames = 0

@@ -75,6 +75,10 @@ class AnyLookParams:
         colour and the ink's. The median distance of the text pixels' colours
         from that line, as a share of the ink's distance from the body, is at
         most this (a shelf of books holds many colours, :func:`ink_spread`).
+    inside_edges : bool
+        Also look for plates inside other edges (:func:`_outlines_within`): a
+        plate whose outline touches a door frame's or a wall corner's edges,
+        which run on to the image's border.  Off until measured end to end.
     shape : DetectorParams
         The white-plate detector's measures, with the ring allowed any
         darkness (a dark plate on a light wall maps to a black ring), the
@@ -89,6 +93,7 @@ class AnyLookParams:
     min_blob_fill: float = 0.3
     max_frame_share: float = 0.45
     max_ink_spread: float = 0.25
+    inside_edges: bool = False
     shape: white.DetectorParams = replace(white.DEFAULT_PARAMS, min_contrast=0.05,
                                           max_contrast=1.0, max_text_chroma=1e9,
                                           rim_height=0.0, rim_width=0.0, edge_offset=-1.0)
@@ -97,6 +102,14 @@ class AnyLookParams:
 DEFAULT_ANY = AnyLookParams()
 _BODY_LEVEL = 250  # the plate level of the body's own colour
 _KERNEL = np.ones((3, 3), np.uint8)
+#: wider than a line of edges (about 3 px, a door frame's two lines about 6): the plate stays
+_LINE_KERNELS = (np.ones((1, 9), np.uint8), np.ones((9, 1), np.uint8))
+#: px: the least width and height of a plate found inside other edges (smaller, and seen
+#: edge on, a far plate is no plate to read yet; a far door's frame encloses boxes that small)
+_MIN_ENCLOSED = (24, 14)
+_MIN_BODY_PIXELS = 12  # smooth pixels enough to tell an enclosed outline's body colour
+_BODY_TOLERANCE = 24  # grey levels (any channel) from the median that are the body's colour
+_MIN_BODY_SHARE = 0.6  # of the smooth pixels inside an enclosed plate's outline
 
 
 def plate_levels(patch: np.ndarray, body: np.ndarray, slope: int) -> np.ndarray:
@@ -197,24 +210,17 @@ def detect_outlined_plates(image: np.ndarray, camera: CameraModel,
     shape = params.shape
     labels = np.zeros((H, W), np.uint16)  # one blob at a time, cleared after it
     levels = np.zeros((H, W), np.uint8)
+    measured = np.zeros((H, W), np.uint8)  # the outlines judged whole
     found = []
-    for contour in contours:
-        x, y, w, h = cv2.boundingRect(contour)
-        if (h < shape.min_height or w < shape.min_width or w * h > params.max_frame_share * H * W
-                or x == 0 or y == 0 or x + w == W or y + h == H):
-            continue  # too small or too big, or cut by the border (the white detector's)
-        inside = np.zeros((h, w), np.uint8)
-        cv2.drawContours(inside, [contour - (x, y)], -1, 1, thickness=cv2.FILLED)
-        area = cv2.countNonZero(inside)
-        if area < shape.min_area or area < params.min_blob_fill * w * h:
-            continue
+
+    def judge(inside: np.ndarray, box: tuple[int, int, int, int]) -> None:
+        x, y, w, h = box
         body_pixels = inside.view(bool)
         patch = smooth[y:y + h, x:x + w]
         guesses = _body_colours(patch, body_pixels, body_pixels & (edges[y:y + h, x:x + w] == 0))
         pad = max(4, h)
         xa, xb, ya, yb = max(0, x - pad), min(W, x + w + pad), max(0, y - pad), min(H, y + h + pad)
         labels[y:y + h, x:x + w] = inside
-        box = (x, y, w, h)
         reason = "no body"
         for body in guesses:
             levels[ya:yb, xa:xb] = plate_levels(smooth[ya:yb, xa:xb], body, params.level_slope)
@@ -232,7 +238,86 @@ def detect_outlined_plates(image: np.ndarray, camera: CameraModel,
         levels[ya:yb, xa:xb] = 0
         if reason is not None and explain is not None:
             explain.append(((x, y, x + w - 1, y + h - 1), reason))
+
+    for contour in contours:
+        box = _whole_box(cv2.boundingRect(contour), W, H, shape, params)
+        if box is None:
+            continue  # too small or too big, or cut by the border (the white detector's)
+        x, y, w, h = box
+        inside = np.zeros((h, w), np.uint8)
+        cv2.drawContours(inside, [contour - (x, y)], -1, 1, thickness=cv2.FILLED)
+        area = cv2.countNonZero(inside)
+        if area < shape.min_area or area < params.min_blob_fill * w * h:
+            continue
+        measured[y:y + h, x:x + w] |= inside
+        judge(inside, box)
+    for inside, box in _outlines_within(edges, measured, shape, params) \
+            if params.inside_edges else ():
+        if _one_body(smooth, edges, inside, box):
+            judge(inside, box)
     return white.drop_nested(found)
+
+
+def _whole_box(box: tuple[int, int, int, int], W: int, H: int, shape: white.DetectorParams,
+               params: AnyLookParams) -> tuple[int, int, int, int] | None:
+    """``box`` if a blob with it may be a plate whole in the frame, else None."""
+    x, y, w, h = box
+    if (h < shape.min_height or w < shape.min_width or w * h > params.max_frame_share * H * W
+            or x == 0 or y == 0 or x + w == W or y + h == H):
+        return None
+    return box
+
+
+def _outlines_within(edges: np.ndarray, measured: np.ndarray, shape: white.DetectorParams,
+                     params: AnyLookParams):
+    """(filled outline, box) of each closed outline that no blob judged holds.
+
+    Why: a plate hung beside a door frame or a wall's corner touches their
+    edges, and its outline's outer contour runs on along them to the frame's
+    border, where it is taken for a wall.  The plate's outline still closes
+    round its body: what the background reaching in from the frame's border
+    leaves out is the edges and what they enclose.  Opened by a row and then a
+    column of pixels wider than a line of edges, the lines drop out and the
+    enclosed plate stays.
+    """
+    H, W = edges.shape
+    count, regions = cv2.connectedComponents(1 - edges, connectivity=4)
+    reaches_border = np.zeros(count, np.uint8)
+    reaches_border[np.concatenate([regions[0], regions[-1], regions[:, 0], regions[:, -1]])] = 1
+    reaches_border[0] = 0  # the edges themselves
+    enclosed = 1 - reaches_border[regions]
+    for kernel in _LINE_KERNELS:  # lines, single or double, across and up the frame drop out
+        enclosed = cv2.morphologyEx(enclosed, cv2.MORPH_OPEN, kernel)
+    enclosed[measured > 0] = 0
+    contours, _ = cv2.findContours(enclosed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    for contour in contours:
+        box = _whole_box(cv2.boundingRect(contour), W, H, shape, params)
+        if box is None or box[2] < _MIN_ENCLOSED[0] or box[3] < _MIN_ENCLOSED[1]:
+            continue  # (a small plate is one blob of edges, found whole as it is)
+        x, y, w, h = box
+        inside = np.zeros((h, w), np.uint8)
+        cv2.drawContours(inside, [contour - (x, y)], -1, 1, thickness=cv2.FILLED)
+        area = cv2.countNonZero(inside)
+        if area < shape.min_area or area < params.min_blob_fill * w * h:
+            continue
+        yield inside, box
+
+
+def _one_body(smooth: np.ndarray, edges: np.ndarray, inside: np.ndarray,
+              box: tuple[int, int, int, int]) -> bool:
+    """Whether most smooth pixels inside an enclosed outline are of one colour, a body's.
+
+    Why: edges enclose more than plates.  A shelf's compartment of books is a
+    closed box of lines too, filled with spines of many colours; a plate's
+    smooth pixels are its body's colour, but for its letters' insides.
+    """
+    x, y, w, h = box
+    smooth_inside = inside.view(bool) & (edges[y:y + h, x:x + w] == 0)
+    pixels = smooth[y:y + h, x:x + w][smooth_inside].astype(np.int16)
+    if len(pixels) < _MIN_BODY_PIXELS:
+        return True  # all edges: a small plate; the measures judge it
+    off = np.abs(pixels - np.median(pixels, axis=0)).max(axis=1)
+    return float(np.mean(off <= _BODY_TOLERANCE)) >= _MIN_BODY_SHARE
 
 
 def detect_any_plates(image: np.ndarray, camera: CameraModel,
