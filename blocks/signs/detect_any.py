@@ -243,12 +243,10 @@ def detect_outlined_plates(image: np.ndarray, camera: CameraModel,
         box = _whole_box(cv2.boundingRect(contour), W, H, shape, params)
         if box is None:
             continue  # too small or too big, or cut by the border (the white detector's)
-        x, y, w, h = box
-        inside = np.zeros((h, w), np.uint8)
-        cv2.drawContours(inside, [contour - (x, y)], -1, 1, thickness=cv2.FILLED)
-        area = cv2.countNonZero(inside)
-        if area < shape.min_area or area < params.min_blob_fill * w * h:
+        inside = _filled(contour, box, shape, params)
+        if inside is None:
             continue
+        x, y, w, h = box
         measured[y:y + h, x:x + w] |= inside
         judge(inside, box)
     for inside, box in _outlines_within(edges, measured, shape, params) \
@@ -266,6 +264,18 @@ def _whole_box(box: tuple[int, int, int, int], W: int, H: int, shape: white.Dete
             or x == 0 or y == 0 or x + w == W or y + h == H):
         return None
     return box
+
+
+def _filled(contour: np.ndarray, box: tuple[int, int, int, int], shape: white.DetectorParams,
+            params: AnyLookParams) -> np.ndarray | None:
+    """The contour filled, in its box; None if it covers too little to be a plate's."""
+    x, y, w, h = box
+    inside = np.zeros((h, w), np.uint8)
+    cv2.drawContours(inside, [contour - (x, y)], -1, 1, thickness=cv2.FILLED)
+    area = cv2.countNonZero(inside)
+    if area < shape.min_area or area < params.min_blob_fill * w * h:
+        return None
+    return inside
 
 
 def _outlines_within(edges: np.ndarray, measured: np.ndarray, shape: white.DetectorParams,
@@ -294,13 +304,9 @@ def _outlines_within(edges: np.ndarray, measured: np.ndarray, shape: white.Detec
         box = _whole_box(cv2.boundingRect(contour), W, H, shape, params)
         if box is None or box[2] < _MIN_ENCLOSED[0] or box[3] < _MIN_ENCLOSED[1]:
             continue  # (a small plate is one blob of edges, found whole as it is)
-        x, y, w, h = box
-        inside = np.zeros((h, w), np.uint8)
-        cv2.drawContours(inside, [contour - (x, y)], -1, 1, thickness=cv2.FILLED)
-        area = cv2.countNonZero(inside)
-        if area < shape.min_area or area < params.min_blob_fill * w * h:
-            continue
-        yield inside, box
+        inside = _filled(contour, box, shape, params)
+        if inside is not None:
+            yield inside, box
 
 
 def _one_body(smooth: np.ndarray, edges: np.ndarray, inside: np.ndarray,
