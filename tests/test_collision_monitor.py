@@ -13,6 +13,7 @@ from blocks.navigate.collision_monitor import (CollisionMonitor, EchoMemory, Mon
                                                carry_points)
 from blocks.navigate.guard import SonarGuard, swept_poses
 from sim2d.robot import load_robot
+from sim2d.sonar import cone_ranges, sensor_poses
 from sim2d.simulation import Simulation
 from sim2d.world import load_world
 
@@ -340,20 +341,14 @@ def test_contacts_are_named_by_the_part_of_the_body_and_the_motion(tmp_path):
                                                          ("rear-left", "backing")]
 
 
-def ranges_to_wall(a, b, max_range: float = 4.0) -> np.ndarray:
-    """The ATRV's readings along each sonar's axis of the wall from ``a`` to ``b``
-    (robot frame): enough to place a wall by the body."""
-    out = np.full(len(ATRV.sonar_names), max_range)
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    for k, (x, y, angle) in enumerate(ATRV.sonar_mounts):
-        d, e = np.array([math.cos(angle), math.sin(angle)]), b - a
-        det = d[0] * -e[1] + e[0] * d[1]
-        if abs(det) < 1e-12:
-            continue
-        t, s = np.linalg.solve(np.column_stack([d, -e]), a - np.array([x, y]))
-        if t > 0 and 0 <= s <= 1:
-            out[k] = min(max_range, t)
-    return out
+def ranges_to_wall(a, b) -> np.ndarray:
+    """The ATRV's sonar readings of a thin wall from ``a`` to ``b`` in the robot's frame, the
+    robot at the origin: sim2d's cone model, without noise or specular loss."""
+    spec = ATRV.sonar
+    sensors = sensor_poses(np.zeros(3), np.asarray(ATRV.sonar_mounts, dtype=np.float64))
+    ranges, _ = cone_ranges(sensors, np.array([[*a, *b, 0.0]]), math.radians(spec.cone_deg) / 2,
+                            spec.max_range)
+    return np.where(np.isfinite(ranges), ranges, spec.max_range)
 
 
 @pytest.mark.parametrize("wall, way", [

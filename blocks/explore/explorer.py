@@ -28,8 +28,9 @@ progress along the way.  What stopped it goes on the planning grid, so the
 next way goes round it.  A goal that failed ``max_attempts`` times, or
 was reached, is not chosen again: a long frontier still there after a goal
 near it was reached is approached again where it is farther than
-``seen_radius`` from it, or, once nothing else is left, ``end_seen_radius``.  Ways that keep failing in one spot mean
-the robot is wedged there: it backs out along its own track.
+``seen_radius`` from it, or, once nothing else is left, ``end_seen_radius``.
+Ways that keep failing in one spot mean the robot is wedged there: it backs
+out along its own track.
 
 A way through a doorway (:mod:`blocks.navigate.doorway`) is driven in three
 legs: to a point in front of the doorway on its axis, a turn to face along

@@ -8,9 +8,8 @@ the hybrid map ``DIR/maps/hybrid.png``.
 """
 from __future__ import annotations
 
-import functools
-
 import csv
+import functools
 import io
 import math
 from typing import Any

@@ -210,7 +210,7 @@ def detect_outlined_plates(image: np.ndarray, camera: CameraModel,
     shape = params.shape
     labels = np.zeros((H, W), np.uint16)  # one blob at a time, cleared after it
     levels = np.zeros((H, W), np.uint8)
-    measured = np.zeros((H, W), np.uint8)  # the outlines judged whole
+    measured = np.zeros((H, W), np.uint8)  # the outlines judged whole (for inside_edges)
     found = []
 
     def judge(inside: np.ndarray, box: tuple[int, int, int, int]) -> None:
@@ -246,13 +246,14 @@ def detect_outlined_plates(image: np.ndarray, camera: CameraModel,
         inside = _filled(contour, box, shape, params)
         if inside is None:
             continue
-        x, y, w, h = box
-        measured[y:y + h, x:x + w] |= inside
+        if params.inside_edges:
+            x, y, w, h = box
+            measured[y:y + h, x:x + w] |= inside
         judge(inside, box)
-    for inside, box in _outlines_within(edges, measured, shape, params) \
-            if params.inside_edges else ():
-        if _one_body(smooth, edges, inside, box):
-            judge(inside, box)
+    if params.inside_edges:
+        for inside, box in _outlines_within(edges, measured, shape, params):
+            if _one_body(smooth, edges, inside, box):
+                judge(inside, box)
     return white.drop_nested(found)
 
 
