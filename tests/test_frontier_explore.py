@@ -296,6 +296,31 @@ def test_a_long_frontier_is_looked_at_along_its_length_once_nothing_else_is_left
     assert 1 <= len(after) <= 3, after
 
 
+def two_rooms_joined_at_one_end() -> OccupancyMap:
+    """Two 5 x 2 m rooms, one above the other (x 1..6; y 1..3 and 3.4..5.4), a wall between
+    them but for a 1.2 m door at its east end (x 4.8..6).  Each room has a 2 m gap to
+    unknown floor: the lower one in its south wall at x 3.5..5.5, the upper one in its west
+    wall at y 3.6..5.4, right above the lower room's west end."""
+    p, xc, yc = unknown_floor(8, 7)
+    p[(xc > 0.8) & (xc < 6.2) & (yc > 0.8) & (yc < 5.6)] = OCC
+    m = painted(OccupancyMap(p, RES, (0.0, 0.0, 0.0)),
+                (1.0, 6.0, 1.0, 3.0, FREE), (1.0, 6.0, 3.4, 5.4, FREE), (4.8, 6.0, 2.9, 3.5, FREE))
+    return painted(m, (3.5, 5.5, 0.7, 1.1, FREE), (0.7, 1.1, 3.6, 5.4, FREE))
+
+
+@pytest.mark.parametrize("goal_distance, room", [("straight", "upper"), ("path", "lower")])
+def test_a_goal_is_as_near_as_the_way_there_with_path_distances(goal_distance, room):
+    """From the lower room's west end the upper room's gap is 2 m away through the wall
+    and 9 m by the door; the lower room's own gap is 3 m either way.  Measured along the
+    straight line the explorer leaves the room for the other; along the way, it finishes
+    the room it is in."""
+    explorer = FrontierExplorer(two_rooms_joined_at_one_end, GUARD,
+                                ExploreParams(goal_distance=goal_distance))
+    run(explorer, PointRobot(1.8, 2.0), 5)
+    first = next(e["goal"] for e in explorer.result.log if "goal" in e)
+    assert (first[1] < 3.0) == (room == "lower"), first
+
+
 def corridor_with_floor_seen_through_its_wall() -> OccupancyMap:
     """A closed 12 x 1.6 m corridor (x 1..13, y 1..2.6) with a strip of free floor 0.4 m
     wide just outside its north wall (what beams passing the wall at a grazing angle

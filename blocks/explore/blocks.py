@@ -312,6 +312,10 @@ class FrontierExploration(Block):
                        min=0.1),
         "gain_weight": Param(float, 1.0, "metres of travel one metre of frontier is worth",
                              min=0.0),
+        "goal_distance": Param(str, "straight", "a goal's distance: the straight line from "
+                                                "the robot, or the way there over the "
+                                                "planning grid (docs/exploration.md)",
+                               choices=("straight", "path")),
         "seen_radius": Param(float, 0.0, "a goal reached with its frontier still there looked "
                                          "at the frontier this far; the rest of a longer one "
                                          "is approached again, from goals that see it (0: the "
@@ -377,6 +381,7 @@ class FrontierExploration(Block):
                                      end_seen_radius=self.p.end_seen_radius,
                                      min_frontier=self.p.min_frontier,
                                      reach=self.p.reach, gain_weight=self.p.gain_weight,
+                                     goal_distance=self.p.goal_distance,
                                      stall_time=self.p.stall_time,
                                      max_failures=self.p.max_failures,
                                      hand_backs=self.p.hand_backs,

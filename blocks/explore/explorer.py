@@ -53,7 +53,7 @@ from blocks.navigate.doorway import Doorway, doorway_legs, find_doorway
 from blocks.navigate.grid import NavGrid, cells_near, inflate, unblock_traversed
 from blocks.navigate.guard import SonarGuard
 from blocks.navigate.legs import TurnWatch
-from blocks.navigate.planner import PlanningError, plan
+from blocks.navigate.planner import SNAP_RADIUS, PlanningError, plan
 from blocks.navigate.pursuit import PurePursuit, PursuitParams
 
 from .frontiers import FrontierGoal, find_frontiers, frontier_goals, unseen_parts
@@ -92,6 +92,11 @@ class ExploreParams:
         A frontier's goal is at most this far (m) from it.
     gain_weight
         Metres of extra travel one metre of frontier is worth.
+    goal_distance
+        What a goal's distance is: ``straight`` (the straight line from the
+        robot) or ``path`` (the shortest way over the planning grid,
+        :meth:`~blocks.navigate.grid.NavGrid.travel_distances`; the floor of the
+        next room, near through a wall, is far by its door).
     replan_every
         Seconds between looks at the map while driving (is the frontier still there?).
     close_enough
@@ -246,6 +251,7 @@ class ExploreParams:
     min_frontier: float = 0.8
     reach: float = 1.0
     gain_weight: float = 1.0
+    goal_distance: str = "straight"
     replan_every: float = 2.0
     back_off_time: float = 1.5
     back_off_speed: float = 0.15
@@ -741,8 +747,27 @@ class FrontierExplorer:
         goals = [(g, grid) for g, grid in goals + (choose(rest, occupancy.classes()[0])
                                                    if rest else [])
                  if not self._near(g.goal, self._forgotten)]
+        if self.p.goal_distance == "path" and goals:
+            goals = self._by_way(goals, tight if tight is not None else wide, pose)
         return sorted(goals, key=lambda pair: pair[0].distance
                       - self.p.gain_weight * pair[0].frontier.length)
+
+    @staticmethod
+    def _by_way(goals: list[tuple[FrontierGoal, NavGrid]], grid: NavGrid, pose: np.ndarray
+                ) -> list[tuple[FrontierGoal, NavGrid]]:
+        """The goals with their distance the way there over ``grid`` (the tight grid, whose
+        free floor holds the wide one's: one pass serves both), not the straight line."""
+        start = grid.free_cell_at(float(pose[0]), float(pose[1]), SNAP_RADIUS)
+        if start is None:
+            return goals
+        travel = grid.travel_distances(*start)
+        out = []
+        for g, g_grid in goals:
+            r, c = grid.world_to_cell(*g.goal)
+            way = float(travel[r, c]) if grid.inside(r, c) else math.inf
+            out.append((replace(g, distance=way if math.isfinite(way) else g.distance + 1e3),
+                        g_grid))
+        return out
 
     def _through_tight_doors(self, tight: NavGrid, pose: np.ndarray, frontiers: list[Any],
                              goals: list[tuple[FrontierGoal, NavGrid]],
