@@ -361,3 +361,90 @@ def test_too_close_to_turn_the_robot_eases_out_by_the_end_farther_from_the_wall(
     ranges = ranges_to_wall(*wall)
     assert guard.blocked(ranges, 0.0, 0.8) == "turning"
     assert guard.ease_direction(ranges) == way
+
+
+# ---- bumpers ----------------------------------------------------------------------------------
+LEFT = [(math.radians(45), math.radians(135))]
+
+
+def test_a_left_bumper_pressed_backing_stops_backing_and_lets_the_robot_go_ahead():
+    """Pressed while backing, the left switch was met by the rear-left corner: backing (and
+    a turn that swings that corner left) would push on, going ahead frees it."""
+    memory = EchoMemory(guard())
+    pose, none = np.array([1.0, 2.0, 0.3]), reading()
+    memory.add(0.0, pose, none)
+    assert not memory.stops(pose, -0.15, 0.0)  # no sonar looks past the rear-left corner
+    memory.add_touch(0.0, pose, LEFT, -0.15, 0.0)
+    assert memory.stops(pose, -0.15, 0.0) and memory.stops(pose, 0.0, -0.6)
+    assert not memory.stops(pose, 0.15, 0.0) and not memory.stops(pose, 0.0, 0.6)
+    # felt walls are kept as long as near echoes, then forgotten
+    memory.add(29.0, pose, none)
+    memory.add_touch(29.0, pose, [], 0.0, 0.0)
+    assert memory.stops(pose, -0.15, 0.0)
+    memory.add(31.0, pose, none)
+    memory.add_touch(31.0, pose, [], 0.0, 0.0)
+    assert not memory.stops(pose, -0.15, 0.0)
+
+
+def slanted_wall_behind_left(tmp_path):
+    """A wall behind the robot's left, 16 degrees off its heading, out of every sonar's sight
+    (the nearest side sonar reads its least range, the rear one meets it at a grazing
+    angle): backing 0.17 m brings the rear-left corner onto it."""
+    xc, yc = floor_plan(6.0, 5.0, 0.05)
+    x, y = xc - 3.0, yc - 2.0  # the robot's frame: the start at (3, 2) facing east
+    outer = (xc < 0) | (xc > 6) | (yc < 0) | (yc > 5)
+    wall = (y > 0.27 + (x + 0.35) * math.tan(math.radians(16))) & (x < 1.0) & (y < 1.5)
+    path = write_world(tmp_path, "slanted", outer | wall, start=(3.0, 2.0, 0.0),
+                       doc="A slanted wall behind the robot's left.")
+    return load_world(path)
+
+
+@pytest.mark.parametrize("felt", [False, True])
+def test_backing_into_a_wall_no_sonar_hears_stops_once_the_bumper_has_felt_it(tmp_path, felt):
+    """A behaviour asks to back for 8 s.  Without its bumpers the monitor lets the robot
+    push on into the wall; with them it stops there, and once its patience is out it
+    drives clear the way that is free and does not come back."""
+    world = slanted_wall_behind_left(tmp_path)
+    sim = Simulation(world, [("r", ATRV, world.start)], seed=0)
+    robot = sim.robots["r"]
+    monitor = CollisionMonitor(guard())
+    spans = [(start, end) for _, start, end in ATRV.bumpers]
+    pressed_ticks, v, w = 0, 0.0, 0.0
+    for tick in range(80):
+        ranges, _ = sim.sonar("r")
+        pressed = sim.bumpers("r")
+        pressed_ticks += bool(pressed.any())
+        if felt:  # before the monitor's step, which adds the scan and checks
+            monitor.echoes.add_touch(0.1 * tick, robot.odom,
+                                     [s for s, on in zip(spans, pressed) if on], v, w)
+        v, w = monitor.step(0.1 * tick, robot.odom, ranges, -0.15, 0.0)
+        sim.command("r", v, w)
+        sim.step(0.1)
+    assert robot.collisions >= 1  # the first touch is how it learns of the wall
+    if felt:
+        assert robot.collisions == 1 and pressed_ticks <= 15, (robot.collisions, pressed_ticks)
+        assert not sim.bumpers("r").any()
+    else:
+        assert pressed_ticks >= 30, pressed_ticks
+
+
+def test_the_memory_block_feels_what_pressed_the_bumper_from_odometry(tmp_path):
+    """navigate.echo_memory takes the motion that pressed a switch from the last 0.3 s of
+    odometry (against a wall the robot hardly moves on the tick it is pressed), and says
+    which input is wrong when the switches are not the robot's."""
+    from blocks.core import BlockError
+    from blocks.core.block import RunContext
+    from blocks.navigate.blocks import EchoMemoryBlock
+    block = EchoMemoryBlock({name: p.default for name, p in EchoMemoryBlock.params.items()},
+                            name="echoes", ctx=RunContext(dt=0.1, seed=0))
+    block.reset()
+    none, left = np.zeros(4, bool), np.array([False, True, False, False])
+    for k in range(4):  # backing along x at 0.15 m/s
+        block.ctx.tick = k
+        block.step(np.array([1.0 - 0.015 * k, 0.0, 0.0]), reading(), none)
+    block.ctx.tick = 4
+    memory = block.step(np.array([0.955, 0.0, 0.0]), reading(), left)["echoes"]
+    assert memory.stops(np.array([0.955, 0.0, 0.0]), -0.15, 0.0)
+    assert not memory.stops(np.array([0.955, 0.0, 0.0]), 0.15, 0.0)
+    with pytest.raises(BlockError, match="input 'bumpers'"):
+        block.step(np.zeros(3), reading(), np.zeros(2, bool))

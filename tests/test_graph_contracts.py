@@ -41,3 +41,12 @@ def test_the_behaviours_judge_motions_on_the_monitors_memory():
     assert memory.params["wall_extent"] == 0.05
     fed = {(e.dst.node, e.dst.port) for e in graph.edges if e.src.node == "echoes"}
     assert fed == {("monitor", "echoes"), ("explorer", "echoes"), ("rooms", "echoes")}
+
+
+def test_the_bumpers_reach_the_shared_memory():
+    """What the bumpers felt goes into the one memory, so every behaviour and the monitor
+    refuse to push on into it, not only the explorer that reads the switches itself."""
+    graph = load_graph(ROOT / "graphs" / "semantic_mapping.yaml", ["feel_bumpers=true"])
+    into = {(e.src.node, e.src.port) for e in graph.edges
+            if (e.dst.node, e.dst.port) == ("echoes", "bumpers")}
+    assert into == {("bumpers", "pressed")} and graph.nodes["echoes"].params["feel"] is True

@@ -511,13 +511,19 @@ class EchoMemoryBlock(Block):
     inputs = {"pose": Port.array("float64", (3,), unit="m,m,rad",
                                  doc="the robot's odometry pose (carries older echoes along)"),
               "ranges": Port.array("float64", (16,), unit="m", frame="robot",
-                                   doc="sonar ranges, in the robot file's order")}
+                                   doc="sonar ranges, in the robot file's order"),
+              "bumpers": Port.array("bool", (None,), required=False, default=None,
+                                    doc="contact switches pressed now (sim2d.bumpers), in "
+                                        "the robot file's order: the walls they felt are "
+                                        "remembered as long as near echoes")}
     outputs = {"echoes": Port(kind="handle", doc="the echo memory, this tick's scan added: "
                                                  "for the 'echoes' inputs of "
                                                  "navigate.collision_monitor, explore.frontiers "
                                                  "and navigate.room_visits")}
     params = {
         "robot": Param(str, "atrv_mini", "robot model (body and sonar)"),
+        "feel": Param(bool, True, "remember the walls the pressed bumpers felt (false: the "
+                                  "'bumpers' input is ignored)"),
         **ECHO_MEMORY_PARAMS,
     }
 
@@ -533,14 +539,39 @@ class EchoMemoryBlock(Block):
                                      min_range=spec.sonar.min_range,
                                      triangulate=self.p.triangulate,
                                      wall_extent=self.p.wall_extent)
+        self._spans = [(start, end) for _, start, end in spec.bumpers]
 
     def reset(self) -> None:
         from .collision_monitor import EchoMemory
         self.memory = EchoMemory(self._guard, self._params)
+        self._poses: list[tuple[float, np.ndarray]] = []
 
-    def step(self, pose: np.ndarray, ranges: np.ndarray) -> dict[str, Any]:
-        self.memory.add(self.ctx.time, np.asarray(pose, dtype=np.float64), ranges)
+    def step(self, pose: np.ndarray, ranges: np.ndarray,
+             bumpers: np.ndarray | None = None) -> dict[str, Any]:
+        time, pose = self.ctx.time, np.asarray(pose, dtype=np.float64)
+        self.memory.add(time, pose, ranges)
+        if bumpers is not None and self.p.feel:
+            if len(bumpers) != len(self._spans):
+                raise BlockError(f"{len(bumpers)} bumpers on the 'bumpers' input, but the "
+                                 f"robot file '{self.p.robot}' has {len(self._spans)}",
+                                 node=self.name, field="input 'bumpers'",
+                                 hint="Connect sim2d.bumpers of the same robot model.")
+            v, w = self._motion(time, pose)
+            spans = [span for span, on in zip(self._spans, bumpers) if on]
+            self.memory.add_touch(time, pose, spans, v, w)
         return {"echoes": self.memory}
+
+    def _motion(self, time: float, pose: np.ndarray, window: float = 0.3) -> tuple[float, float]:
+        """The robot's motion (v, w) over the last ``window`` seconds of odometry: what
+        pressed a bumper pressed now (a robot against a wall hardly moves this tick)."""
+        self._poses = [(t, p) for t, p in self._poses if t >= time - window - 1e-9]
+        self._poses.append((time, pose))
+        t0, p0 = self._poses[0]
+        if time - t0 <= 1e-9:
+            return 0.0, 0.0
+        dx, dy = pose[0] - p0[0], pose[1] - p0[1]
+        v = (dx * math.cos(p0[2]) + dy * math.sin(p0[2])) / (time - t0)
+        return v, math.remainder(pose[2] - p0[2], 2 * math.pi) / (time - t0)
 
 
 @block("navigate.collision_monitor", category="navigate")

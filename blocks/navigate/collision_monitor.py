@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .guard import SonarGuard
+from .guard import SonarGuard, felt_walls
 from .sonar_triangulation import triangulate_echoes
 
 __all__ = ["CollisionMonitor", "EchoMemory", "HeldClock", "MonitorParams", "carry_points"]
@@ -192,6 +192,10 @@ class EchoMemory:
         self._near_arcs = np.zeros((0, samples, 2))
         self._near_times = np.zeros(0)
         self._near_pose: np.ndarray | None = None  # where the last kept were heard
+        # walls the bumpers felt (odometry frame), kept as long as near echoes
+        self._felt = np.zeros((0, 2))
+        self._felt_times = np.zeros(0)
+        self._felt_pose: np.ndarray | None = None
         self._cached: tuple[float, tuple[float, ...], np.ndarray] | None = None
         self._mounts = np.asarray(guard.mounts, dtype=np.float64).reshape(-1, 3)
 
@@ -219,6 +223,33 @@ class EchoMemory:
             self._scans.popleft()
         if self.p.near_memory > self.p.memory:
             self._remember_near(time, pose, raw)
+
+    def add_touch(self, time: float, pose: np.ndarray, spans: list[tuple[float, float]],
+                  v: float, w: float) -> None:
+        """Remember the walls that the bumpers pressed now (their bearing ``spans``, rad) say
+        the body touches, the robot moving at (``v``, ``w``) (:func:`~blocks.navigate.guard.
+        felt_walls`), at odometry ``pose``; kept ``near_memory`` seconds (at least
+        ``memory``), so no behaviour drives on into what no sonar hears."""
+        keep = max(self.p.near_memory, self.p.memory)
+        old = self._felt_times < time - keep + 1e-9
+        if old.any():
+            self._felt, self._felt_times = self._felt[~old], self._felt_times[~old]
+        if not spans:
+            return
+        last = self._felt_pose
+        if last is not None and math.hypot(pose[0] - last[0], pose[1] - last[1]) < 0.02 \
+                and abs(math.remainder(pose[2] - last[2], 2 * math.pi)) < 0.03:
+            return  # pressed on where it was: felt already
+        points = felt_walls(self.guard.length, self.guard.width, spans, v, w)
+        if not len(points):
+            return
+        self._felt_pose = np.array(pose, dtype=np.float64)
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        world = np.column_stack([pose[0] + c * points[:, 0] - s * points[:, 1],
+                                 pose[1] + s * points[:, 0] + c * points[:, 1]])
+        self._felt = np.concatenate([self._felt, world])
+        self._felt_times = np.concatenate([self._felt_times, np.full(len(world), time)])
+        self._cached = None
 
     def _remember_near(self, time: float, pose: np.ndarray, raw: np.ndarray) -> None:
         """Keep this scan's near echoes (not those at the least range: they are on the
@@ -326,6 +357,10 @@ class EchoMemory:
             older = self._near_times < self._scans[-1][0] - self.p.memory + 1e-9
             if older.any():
                 carried.append(self._near_in_frame(self._near_arcs[older], pose))
+        if len(self._felt):  # each point a wall's: any one reached stops a motion
+            samples = max(self.guard.arc_samples, 1)
+            carried.append(self._near_in_frame(np.repeat(self._felt[:, None, :], samples, axis=1),
+                                               pose))
         if not carried:
             return np.zeros((0, max(self.guard.arc_samples, 1), 2))
         return np.concatenate(carried)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SonarGuard", "swept_poses", "wall_hypotheses"]
+__all__ = ["SonarGuard", "felt_walls", "swept_poses", "wall_hypotheses"]
 
 
 def wall_hypotheses(arcs: np.ndarray, extent: float, points: int = 5) -> np.ndarray:
@@ -63,6 +63,65 @@ def wall_hypotheses(arcs: np.ndarray, extent: float, points: int = 5) -> np.ndar
     tangent = np.divide(tangent, length, out=np.zeros_like(tangent), where=length > 1e-9)
     offsets = np.linspace(-extent, extent, points)
     return arcs[:, :, None, :] + offsets[None, None, :, None] * tangent[:, :, None, :]
+
+
+def felt_walls(length: float, width: float, spans: list[tuple[float, float]], v: float,
+               w: float, extent: float = 0.3, spacing: float = 0.05, offset: float = 0.005,
+               normals: int = 9) -> np.ndarray:
+    """(P, 2) robot-frame points of the walls that pressed bumpers say the body touches.
+
+    Why: a contact switch is what a robot has where no sonar looks (past a rear
+    corner, along a side flush with a wall); once pressed, the motion that
+    pressed it must not go on.  A switch says only that the surface's normal
+    (from the body to what it touches) lies within its span of bearings.  A flat
+    surface touches a box where the box reaches farthest along that normal: a
+    corner.  The motion narrows it down: the touching point must have been
+    moving into the surface, so a left switch pressed while backing was met
+    by the rear-left corner, with the normal pointing back and left.  For each
+    normal so consistent (all of them if none is: the robot stood still), the
+    surface is the line through that corner square to the normal, ``offset``
+    (m) clear of it and ``extent`` (m) either way, sampled every ``spacing``;
+    its points inside the body are dropped (a wall cannot be there).
+
+    Parameters
+    ----------
+    length, width
+        The body (m), centred on the robot's origin.
+    spans
+        (start, end) bearings (rad, robot frame, counter-clockwise) of each
+        pressed switch.
+    v, w
+        The motion when they were pressed (m/s, rad/s).
+
+    Examples
+    --------
+    >>> left = [(math.radians(45), math.radians(135))]
+    >>> walls = felt_walls(0.5, 0.5, left, -0.15, 0.0)  # pressed while backing
+    >>> bool((walls[:, 0] < 0).mean() > 0.5)  # by the rear-left corner: mostly behind
+    True
+    >>> round(float(np.hypot(*(walls - [-0.25, 0.25]).T).min()), 3)  # just clear of it
+    0.005
+    """
+    half_l, half_w = length / 2, width / 2
+    out = []
+    for start, end in spans:
+        bearings = start + np.linspace(0.0, (end - start) % (2 * math.pi), normals)
+        n = np.column_stack([np.cos(bearings), np.sin(bearings)])
+        corner = np.column_stack([np.where(n[:, 0] >= 0, half_l, -half_l),
+                                  np.where(n[:, 1] >= 0, half_w, -half_w)])
+        velocity = np.column_stack([v - w * corner[:, 1], w * corner[:, 0]])
+        into = (velocity * n).sum(axis=1) > 1e-9
+        if into.any():
+            n, corner = n[into], corner[into]
+        along = np.arange(-extent, extent + 1e-9, spacing)
+        tangent = np.column_stack([-n[:, 1], n[:, 0]])
+        points = (corner + offset * n)[:, None, :] + along[None, :, None] * tangent[:, None, :]
+        out.append(points.reshape(-1, 2))
+    if not out:
+        return np.zeros((0, 2))
+    points = np.concatenate(out)
+    outside = (np.abs(points[:, 0]) > half_l) | (np.abs(points[:, 1]) > half_w)
+    return np.unique(np.round(points[outside], 4), axis=0)
 
 
 def swept_poses(v: float, w: float, times: np.ndarray) -> np.ndarray:
