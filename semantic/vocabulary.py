@@ -31,6 +31,7 @@ __all__ = [
     "canonical",
     "compact",
     "load_vocabulary",
+    "same_name",
 ]
 
 DEFAULT_PATH = Path(__file__).with_name("vocabulary.yaml")
@@ -64,6 +65,19 @@ def compact(text: str) -> str:
     OCR drops and inserts spaces freely, so spelling is compared on this form too.
     """
     return "".join(ch for ch in str(text).upper() if ch.isalnum())
+
+
+def same_name(a: str, b: str) -> bool:
+    """Whether two sign or place names are one name: case and spacing say nothing.
+
+    Why: a plate's ``POSTROOM`` is read ``POST ROOM`` (the vocabulary's
+    spelling); every scorer that compares a name read with a name true asks
+    this, so a sign read exactly is also a place planned to exactly.
+
+    >>> same_name("POST ROOM", "Postroom"), same_name("WARD 2", "WARD B")
+    (True, False)
+    """
+    return "".join(str(a).upper().split()) == "".join(str(b).upper().split())
 
 
 @dataclass(frozen=True)

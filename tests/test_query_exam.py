@@ -222,6 +222,17 @@ def test_a_wrong_expectation_is_scored_wrong_and_says_what_came_instead(office):
     assert got[6].startswith('error: could not understand "fetch the wizard\'s scroll"')
 
 
+def test_names_compare_as_the_sign_scorer_compares_them(office):
+    """A plate reads MAIL ROOM on the robot's map; the truth may spell it MAILROOM. The sign
+    scorer counts that read exactly, so the command scorer counts the plan to it right: case
+    and spacing say nothing, letters do."""
+    spaced = [CommandCase("go to the mail room", "go_named", objectives=(("go to", "MAILROOM"),)),
+              CommandCase("where is the kitchen?", "where_object", answer=("KIT CHEN",))]
+    assert score_commands(office.qm, spaced, NOW)["right"] == 2
+    other = CommandCase("go to the mail room", "go_named", objectives=(("go to", "MAIL ROOMS"),))
+    assert score_commands(office.qm, [other], NOW)["right"] == 0
+
+
 # ---- the file -----------------------------------------------------------------------------------
 def test_the_commands_file_round_trips(office, tmp_path):
     cases = generate_commands(office.world, seed=5, count=30)

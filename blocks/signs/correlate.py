@@ -39,6 +39,7 @@ import numpy as np
 
 from blocks.core.atomic import atomic_write_figure, atomic_write_text
 from blocks.core.jsonable import to_jsonable
+from semantic.vocabulary import same_name
 
 from .geometry import camera_pose_of, compose, estimate_plate, relative, wrap
 from .types import PLATE_HEIGHT, PLATE_WIDTH, Capture, Reading
@@ -784,7 +785,7 @@ def score_signs(signs: Sequence[Any], true_signs: Sequence[Any],
             errors.append(err)
             if ferr is not None:
                 facing_errors.append(ferr)
-            ok = etext.replace(" ", "") == text.replace(" ", "")  # spacing says nothing
+            ok = same_name(etext, text)
             read += ok
             wrong += not ok
             rec.update(status="read" if ok else "wrong_text", text=etext, x=ex, y=ey,

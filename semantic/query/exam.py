@@ -37,7 +37,9 @@ expected (action, place) pairs in order; a question, when the answer holds every
 expected word (whole words, case kept); a refusal, when the planner raises
 :class:`~semantic.query.GroundingError` holding every expected word. Anything
 else (a parse error, a plan where a refusal was due) is wrong, and the row says
-what came instead.
+what came instead. Names compare as the sign scorer compares them
+(:func:`~semantic.vocabulary.same_name`: case and spacing say nothing), so a
+plate ``POSTROOM`` read ``POST ROOM`` is a place planned to rightly.
 """
 from __future__ import annotations
 
@@ -57,6 +59,7 @@ from blocks.core.errors import SemmapError
 from blocks.core.yamlsrc import line_of, load_versioned_mapping
 from semantic.lexicon import normalise
 from semantic.timetable import DAYS, Person, Slot
+from semantic.vocabulary import same_name
 
 from .ground import GroundingError
 from .mapsource import QueryMap
@@ -554,7 +557,9 @@ def _judge(case: CommandCase, qm: QueryMap, when: dt.datetime) -> dict[str, Any]
     got = tuple((o.action, o.target.label) for o in plan.grounding.objectives)
     if case.expects == "plan":
         row["got"] = "; ".join(f"{a} at {p}" for a, p in got) or "no objectives"
-        row["right"] = got == case.objectives
+        row["right"] = len(got) == len(case.objectives) and all(
+            action == want_action and same_name(place, want_place)
+            for (action, place), (want_action, want_place) in zip(got, case.objectives))
     elif case.expects == "answer":
         row["got"] = plan.grounding.answer
         row["right"] = _holds(plan.grounding.answer, case.answer)
@@ -565,8 +570,10 @@ def _judge(case: CommandCase, qm: QueryMap, when: dt.datetime) -> dict[str, Any]
 
 
 def _holds(text: str, words: Sequence[str]) -> bool:
-    """Whether ``text`` holds every one of ``words`` as whole words (case kept)."""
-    return all(re.search(rf"(?<!\w){re.escape(w)}(?!\w)", text) for w in words)
+    """Whether ``text`` holds every one of ``words`` as whole words (case kept; spacing
+    says nothing, as in :func:`~semantic.vocabulary.same_name`)."""
+    return all(re.search(r"(?<!\w)" + r"\s*".join(re.escape(ch) for ch in w if not ch.isspace())
+                         + r"(?!\w)", text) for w in words)
 
 
 # ---- the file -----------------------------------------------------------------------------------
