@@ -386,6 +386,41 @@ def test_a_left_bumper_pressed_backing_stops_backing_and_lets_the_robot_go_ahead
     assert not memory.stops(pose, -0.15, 0.0)
 
 
+def felt_stops(switch: int, v: float, w: float) -> dict[tuple[float, float], bool]:
+    """Which slow motions a memory that felt one switch pressed at (v, w) refuses."""
+    spans = [(start, end) for _, start, end in ATRV.bumpers]
+    memory = EchoMemory(guard())
+    memory.add(0.0, np.zeros(3), reading())
+    memory.add_touch(0.0, np.zeros(3), [spans[switch]], v, w)
+    return {(a, b): memory.stops(np.zeros(3), a, b)
+            for a in (-0.15, 0.0, 0.15) for b in (-0.6, 0.0, 0.6) if a or b}
+
+
+@pytest.mark.parametrize("switch", range(4))
+@pytest.mark.parametrize("v, w", [(0.3, 0.0), (0.2, 0.3), (-0.15, 0.0), (0.0, 0.6), (0.0, 0.0)])
+def test_one_switch_pressed_leaves_a_way_to_go(switch, v, w):
+    """Whatever pressed one switch (or nothing known did: the robot stood still), the wall
+    it felt leaves the robot a way to drive off: a memory that boxed it in would end the
+    run where it stands."""
+    stops = felt_stops(switch, v, w)
+    assert not (stops[(0.15, 0.0)] and stops[(-0.15, 0.0)]), stops
+
+
+@pytest.mark.parametrize("switch, v, w", [
+    (0, 0.3, 0.0), (0, 0.2, 0.3), (0, 0.2, -0.3),  # front, driving ahead
+    (1, -0.15, 0.0), (1, 0.2, 0.3), (1, 0.0, 0.6),  # left: backing, turning left
+    (2, -0.15, 0.0), (2, -0.1, 0.4),  # rear, backing
+    (3, 0.2, -0.3), (3, 0.0, -0.6)])  # right, turning right
+def test_the_motion_that_pressed_a_switch_is_refused_and_a_turn_stays_free(switch, v, w):
+    """A switch the motion pressed: the wall is where the corner that drove in met it, so
+    going on is refused, and the robot may still turn one way (a square body flush with a
+    wall could not, but one corner on it can)."""
+    stops = felt_stops(switch, v, w)
+    going_on = (0.15 * np.sign(v), 0.6 * np.sign(w)) if v else (0.0, 0.6 * np.sign(w))
+    assert stops[going_on], stops
+    assert not (stops[(0.0, 0.6)] and stops[(0.0, -0.6)]), stops
+
+
 def slanted_wall_behind_left(tmp_path):
     """A wall behind the robot's left, 16 degrees off its heading, out of every sonar's sight
     (the nearest side sonar reads its least range, the rear one meets it at a grazing

@@ -67,21 +67,23 @@ def wall_hypotheses(arcs: np.ndarray, extent: float, points: int = 5) -> np.ndar
 
 def felt_walls(length: float, width: float, spans: list[tuple[float, float]], v: float,
                w: float, extent: float = 0.3, spacing: float = 0.05, offset: float = 0.005,
-               normals: int = 9) -> np.ndarray:
+               normals: int = 19) -> np.ndarray:
     """(P, 2) robot-frame points of the walls that pressed bumpers say the body touches.
 
     Why: a contact switch is what a robot has where no sonar looks (past a rear
     corner, along a side flush with a wall); once pressed, the motion that
-    pressed it must not go on.  A switch says only that the surface's normal
-    (from the body to what it touches) lies within its span of bearings.  A flat
-    surface touches a box where the box reaches farthest along that normal: a
-    corner.  The motion narrows it down: the touching point must have been
-    moving into the surface, so a left switch pressed while backing was met
-    by the rear-left corner, with the normal pointing back and left.  For each
-    normal so consistent (all of them if none is: the robot stood still), the
-    surface is the line through that corner square to the normal, ``offset``
-    (m) clear of it and ``extent`` (m) either way, sampled every ``spacing``;
-    its points inside the body are dropped (a wall cannot be there).
+    pressed it must not go on, and the motions away from it must stay free.  A
+    switch says only that the touched surface's normal (from the body to what it
+    touches) lies within its span of bearings.  A flat surface touches a box at
+    the corner that reaches farthest along that normal, and the touching corner
+    was moving into it: of the corners so consistent with the motion (of the
+    last moments), the one that drove in hardest is taken, with the mean of its
+    consistent normals (a left switch pressed while backing: the rear-left
+    corner, the wall behind and to the left).  The wall is the line through that
+    corner square to the normal, ``offset`` (m) clear of it and ``extent`` (m)
+    either way, sampled every ``spacing``.  With no motion into anything (the
+    robot stood still) it is the switch's face, square to the span's middle.
+    Points inside the body are dropped (a wall cannot be there).
 
     Parameters
     ----------
@@ -97,31 +99,40 @@ def felt_walls(length: float, width: float, spans: list[tuple[float, float]], v:
     --------
     >>> left = [(math.radians(45), math.radians(135))]
     >>> walls = felt_walls(0.5, 0.5, left, -0.15, 0.0)  # pressed while backing
-    >>> bool((walls[:, 0] < 0).mean() > 0.5)  # by the rear-left corner: mostly behind
+    >>> bool(walls[:, 0].mean() < -0.2)  # by the rear-left corner: behind it
     True
     >>> round(float(np.hypot(*(walls - [-0.25, 0.25]).T).min()), 3)  # just clear of it
     0.005
     """
     half_l, half_w = length / 2, width / 2
+    corners = np.array([[half_l, half_w], [half_l, -half_w], [-half_l, -half_w],
+                        [-half_l, half_w]])
+    along = np.arange(-extent, extent + 1e-9, spacing)
     out = []
     for start, end in spans:
-        bearings = start + np.linspace(0.0, (end - start) % (2 * math.pi), normals)
+        size = (end - start) % (2 * math.pi)
+        bearings = start + np.linspace(0.0, size, normals)
         n = np.column_stack([np.cos(bearings), np.sin(bearings)])
-        corner = np.column_stack([np.where(n[:, 0] >= 0, half_l, -half_l),
-                                  np.where(n[:, 1] >= 0, half_w, -half_w)])
-        velocity = np.column_stack([v - w * corner[:, 1], w * corner[:, 0]])
-        into = (velocity * n).sum(axis=1) > 1e-9
-        if into.any():
-            n, corner = n[into], corner[into]
-        along = np.arange(-extent, extent + 1e-9, spacing)
-        tangent = np.column_stack([-n[:, 1], n[:, 0]])
-        points = (corner + offset * n)[:, None, :] + along[None, :, None] * tangent[:, None, :]
-        out.append(points.reshape(-1, 2))
+        reach = n @ corners.T  # (normals, 4): how far each corner reaches along each normal
+        support = reach >= reach.max(axis=1, keepdims=True) - 1e-9
+        velocity = np.column_stack([v - w * corners[:, 1], w * corners[:, 0]])  # (4, 2)
+        into = np.where(support, n @ velocity.T, -np.inf)  # (normals, 4)
+        if into.max() > 1e-9:
+            k = int(np.argmax(into.max(axis=0)))  # the corner that drove in hardest
+            mean = n[into[:, k] > 1e-9].sum(axis=0)
+            normal = mean / np.hypot(*mean)
+            centre = corners[k]
+        else:  # no motion into it: the switch's face
+            middle = start + size / 2
+            normal = np.array([math.cos(middle), math.sin(middle)])
+            centre = corners[support[normals // 2]].mean(axis=0)
+        tangent = np.array([-normal[1], normal[0]])
+        out.append(centre + offset * normal + along[:, None] * tangent)
     if not out:
         return np.zeros((0, 2))
     points = np.concatenate(out)
     outside = (np.abs(points[:, 0]) > half_l) | (np.abs(points[:, 1]) > half_w)
-    return np.unique(np.round(points[outside], 4), axis=0)
+    return points[outside]
 
 
 def swept_poses(v: float, w: float, times: np.ndarray) -> np.ndarray:
