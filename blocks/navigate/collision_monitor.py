@@ -196,6 +196,7 @@ class EchoMemory:
         self._felt = np.zeros((0, 2))
         self._felt_times = np.zeros(0)
         self._felt_pose: np.ndarray | None = None
+        self._felt_spans: list[tuple[float, float]] = []
         self._cached: tuple[float, tuple[float, ...], np.ndarray] | None = None
         self._mounts = np.asarray(guard.mounts, dtype=np.float64).reshape(-1, 3)
 
@@ -237,13 +238,14 @@ class EchoMemory:
         if not spans:
             return
         last = self._felt_pose
-        if last is not None and math.hypot(pose[0] - last[0], pose[1] - last[1]) < 0.02 \
+        if last is not None and spans == self._felt_spans \
+                and math.hypot(pose[0] - last[0], pose[1] - last[1]) < 0.02 \
                 and abs(math.remainder(pose[2] - last[2], 2 * math.pi)) < 0.03:
-            return  # pressed on where it was: felt already
+            return  # the same switches pressed on where it was: felt already
         points = felt_walls(self.guard.length, self.guard.width, spans, v, w)
         if not len(points):
             return
-        self._felt_pose = np.array(pose, dtype=np.float64)
+        self._felt_pose, self._felt_spans = np.array(pose, dtype=np.float64), list(spans)
         c, s = math.cos(pose[2]), math.sin(pose[2])
         world = np.column_stack([pose[0] + c * points[:, 0] - s * points[:, 1],
                                  pose[1] + s * points[:, 0] + c * points[:, 1]])
