@@ -748,25 +748,27 @@ class FrontierExplorer:
                                                    if rest else [])
                  if not self._near(g.goal, self._forgotten)]
         if self.p.goal_distance == "path" and goals:
-            goals = self._by_way(goals, tight if tight is not None else wide, pose)
+            goals = self._by_way(goals, pose)
         return sorted(goals, key=lambda pair: pair[0].distance
                       - self.p.gain_weight * pair[0].frontier.length)
 
     @staticmethod
-    def _by_way(goals: list[tuple[FrontierGoal, NavGrid]], grid: NavGrid, pose: np.ndarray
+    def _by_way(goals: list[tuple[FrontierGoal, NavGrid]], pose: np.ndarray
                 ) -> list[tuple[FrontierGoal, NavGrid]]:
-        """The goals with their distance the way there over ``grid`` (the tight grid, whose
-        free floor holds the wide one's: one pass serves both), not the straight line."""
-        start = grid.free_cell_at(float(pose[0]), float(pose[1]), SNAP_RADIUS)
-        if start is None:
-            return goals
-        travel = grid.travel_distances(*start)
+        """The goals with their distance the way there over the grid each is planned on,
+        not the straight line (one Dijkstra pass per grid: the wide one, and the tight
+        one only for the goals behind a door that only it opens)."""
+        travel: dict[int, np.ndarray | None] = {}
         out = []
-        for g, g_grid in goals:
+        for g, grid in goals:
+            if id(grid) not in travel:
+                start = grid.free_cell_at(float(pose[0]), float(pose[1]), SNAP_RADIUS)
+                travel[id(grid)] = None if start is None else grid.travel_distances(*start)
+            ways = travel[id(grid)]
             r, c = grid.world_to_cell(*g.goal)
-            way = float(travel[r, c]) if grid.inside(r, c) else math.inf
+            way = float(ways[r, c]) if ways is not None and grid.inside(r, c) else math.inf
             out.append((replace(g, distance=way if math.isfinite(way) else g.distance + 1e3),
-                        g_grid))
+                        grid))
         return out
 
     def _through_tight_doors(self, tight: NavGrid, pose: np.ndarray, frontiers: list[Any],
