@@ -127,6 +127,20 @@ def carry_points(points: np.ndarray, then: np.ndarray, now: np.ndarray) -> np.nd
     return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
 
 
+def _in_odometry(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Points (..., 2) in the robot frame at odometry ``pose``, in the odometry frame."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return np.stack([pose[0] + c * points[..., 0] - s * points[..., 1],
+                     pose[1] + s * points[..., 0] + c * points[..., 1]], axis=-1)
+
+
+def _moved(last: np.ndarray | None, pose: np.ndarray) -> bool:
+    """Whether the robot has moved from ``last`` enough (2 cm or 0.03 rad) to hear or feel
+    anew what it heard or felt there (a robot standing still hears the same echoes)."""
+    return last is None or math.hypot(pose[0] - last[0], pose[1] - last[1]) >= 0.02 \
+        or abs(math.remainder(pose[2] - last[2], 2 * math.pi)) >= 0.03
+
+
 class HeldClock:
     """How long a collision monitor has let none of a command that asks to move through.
 
@@ -231,24 +245,17 @@ class EchoMemory:
         the body touches, the robot moving at (``v``, ``w``) (:func:`~blocks.navigate.guard.
         felt_walls`), at odometry ``pose``; kept ``near_memory`` seconds (at least
         ``memory``), so no behaviour drives on into what no sonar hears."""
-        keep = max(self.p.near_memory, self.p.memory)
-        old = self._felt_times < time - keep + 1e-9
-        if old.any():
-            self._felt, self._felt_times = self._felt[~old], self._felt_times[~old]
-        if not spans:
-            return
-        last = self._felt_pose
-        if last is not None and spans == self._felt_spans \
-                and math.hypot(pose[0] - last[0], pose[1] - last[1]) < 0.02 \
-                and abs(math.remainder(pose[2] - last[2], 2 * math.pi)) < 0.03:
-            return  # the same switches pressed on where it was: felt already
+        if len(self._felt_times):
+            old = self._felt_times < time - max(self.p.near_memory, self.p.memory) + 1e-9
+            if old.any():
+                self._felt, self._felt_times = self._felt[~old], self._felt_times[~old]
+        if not spans or (spans == self._felt_spans and not _moved(self._felt_pose, pose)):
+            return  # nothing pressed, or the same switches pressed on where it was: felt
         points = felt_walls(self.guard.length, self.guard.width, spans, v, w)
         if not len(points):
             return
         self._felt_pose, self._felt_spans = np.array(pose, dtype=np.float64), list(spans)
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        world = np.column_stack([pose[0] + c * points[:, 0] - s * points[:, 1],
-                                 pose[1] + s * points[:, 0] + c * points[:, 1]])
+        world = _in_odometry(points, pose)
         self._felt = np.concatenate([self._felt, world])
         self._felt_times = np.concatenate([self._felt_times, np.full(len(world), time)])
         self._cached = None
@@ -263,15 +270,9 @@ class EchoMemory:
         if len(self._near_times):
             self._carve_near(pose, raw)
         near = (raw < self.p.near_range) & (raw > self.p.min_range + self.p.touch)
-        last = self._near_pose
-        moved = last is None or math.hypot(pose[0] - last[0], pose[1] - last[1]) >= 0.02 \
-            or abs(math.remainder(pose[2] - last[2], 2 * math.pi)) >= 0.03
-        if near.any() and moved:
+        if near.any() and _moved(self._near_pose, pose):
             self._near_pose = pose
-            arcs = self.guard.echo_arcs(np.where(near, raw, math.inf))
-            c, s = math.cos(pose[2]), math.sin(pose[2])
-            world = np.stack([pose[0] + c * arcs[..., 0] - s * arcs[..., 1],
-                              pose[1] + s * arcs[..., 0] + c * arcs[..., 1]], axis=-1)
+            world = _in_odometry(self.guard.echo_arcs(np.where(near, raw, math.inf)), pose)
             self._near_arcs = np.concatenate([self._near_arcs, world])
             self._near_times = np.concatenate([self._near_times, np.full(len(world), time)])
 
