@@ -27,7 +27,9 @@ def _ring(polygon: np.ndarray) -> list[list[float]]:
 
 
 def places_geojson(pm: PlaceMap, names: Mapping[str, str] | None = None,
-                   kinds: Mapping[str, str] | None = None) -> dict[str, Any]:
+                   kinds: Mapping[str, str] | None = None,
+                   unentered: Mapping[str, tuple[str, tuple[float, float]]] | None = None
+                   ) -> dict[str, Any]:
     """The place map as a GeoJSON FeatureCollection (a dict).
 
     Parameters
@@ -39,13 +41,18 @@ def places_geojson(pm: PlaceMap, names: Mapping[str, str] | None = None,
     kinds
         Place id -> kind (ontology class); defaults to the place's kind hint
         (``"corridor"`` / ``"room"``).
+    unentered
+        Id -> (name, (x, y)) of the rooms known only by their signs
+        (:attr:`semantic.semantic_map.SemanticMap.unentered`), optional.
 
     Returns
     -------
     dict
         One Polygon feature per place (properties ``id``, ``name``, ``kind``,
-        ``kind_hint``, ``area`` m^2, ``centroid`` [x, y]) and one Point feature
-        per door (``id``, ``kind: "door"``, ``width`` m, ``between`` [id, id]).
+        ``kind_hint``, ``area`` m^2, ``centroid`` [x, y]), one Point feature
+        per door (``id``, ``kind: "door"``, ``width`` m, ``between`` [id, id])
+        and one Point feature per room known only by its sign, at its door
+        (``id``, ``name``, ``kind``, ``entered: false``).
     """
     names, kinds = dict(names or {}), dict(kinds or {})
     features = []
@@ -66,16 +73,26 @@ def places_geojson(pm: PlaceMap, names: Mapping[str, str] | None = None,
             "properties": {"id": d.id, "kind": "door", "width": round(d.width, 3),
                            "between": [d.a, d.b]},
         })
+    for pid, (name, (x, y)) in (unentered or {}).items():
+        features.append({
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": [round(x, 3), round(y, 3)]},
+            "properties": {"id": pid, "name": name, "kind": kinds.get(pid, "room"),
+                           "entered": False},
+        })
     return {"type": "FeatureCollection", "name": "places",
             "properties": {"frame": "map", "units": "m", "resolution": pm.resolution},
             "features": features}
 
 
 def write_places_geojson(path: str | Path, pm: PlaceMap, names: Mapping[str, str] | None = None,
-                         kinds: Mapping[str, str] | None = None) -> Path:
+                         kinds: Mapping[str, str] | None = None,
+                         unentered: Mapping[str, tuple[str, tuple[float, float]]] | None = None
+                         ) -> Path:
     """Write :func:`places_geojson` to ``path`` (atomically); returns the path."""
     path = Path(path)
-    atomic_write_text(path, json.dumps(places_geojson(pm, names, kinds), indent=1) + "\n")
+    atomic_write_text(path, json.dumps(places_geojson(pm, names, kinds, unentered), indent=1)
+                      + "\n")
     return path
 
 
@@ -101,7 +118,9 @@ def draw_place_map(path: str | Path, pm: PlaceMap, m: OccupancyMap,
                    labels: Mapping[str, str] | None = None,
                    signs: Iterable[Mapping[str, Any]] | None = None,
                    title: str | None = None, size_px: int = 1200,
-                   objects: Iterable[Mapping[str, Any]] | None = None) -> Path:
+                   objects: Iterable[Mapping[str, Any]] | None = None,
+                   unentered: Mapping[str, tuple[str, tuple[float, float]]] | None = None
+                   ) -> Path:
     """A PNG of the map coloured by place, with names at centroids and doors marked.
 
     Parameters
@@ -124,6 +143,9 @@ def draw_place_map(path: str | Path, pm: PlaceMap, m: OccupancyMap,
         Width of the picture (px).
     objects
         Optional object records (label, x, y): blue diamonds with their label.
+    unentered
+        Optional id -> (name, (x, y)): rooms known only by their signs, their
+        names in a dashed box at their doors.
 
     Returns
     -------
@@ -170,6 +192,12 @@ def draw_place_map(path: str | Path, pm: PlaceMap, m: OccupancyMap,
                 ax.annotate("", xy=(x + arrow * math.cos(f), y + arrow * math.sin(f)),
                             xytext=(x, y), zorder=7,
                             arrowprops={"arrowstyle": "->", "color": "#b03a2e", "lw": 1.0})
+        for k, (name, (x, y)) in enumerate((unentered or {}).values()):
+            ax.plot(x, y, "v", color="#6c3483", ms=5, zorder=7,
+                    label="room read, not entered" if k == 0 else None)
+            ax.text(x, y + 0.2, name, fontsize=6, color="#6c3483", ha="center", va="bottom",
+                    zorder=7, bbox={"boxstyle": "round,pad=0.15", "fc": "white",
+                                    "ec": "#6c3483", "ls": "--", "alpha": 0.75})
         for k, o in enumerate(objects or []):
             x, y = float(o["x"]), float(o["y"])
             ax.plot(x, y, "D", color="#1f5fa8", ms=4, zorder=7, label="object" if k == 0 else None)
@@ -182,7 +210,7 @@ def draw_place_map(path: str | Path, pm: PlaceMap, m: OccupancyMap,
         ax.set_ylabel("y [m]")
         ax.set_title(title if title is not None else
                      f"places: {len(pm.places)} places, {len(pm.doors)} doors")
-        if pm.doors or signs or objects:
+        if pm.doors or signs or objects or unentered:
             ax.legend(loc="upper right", fontsize=7)
         fig.tight_layout()
         return atomic_write_figure(path, fig)

@@ -10,6 +10,7 @@ equipment, roles) the way Galindo et al.'s semantic maps do, and
 """
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -22,12 +23,15 @@ from blocks.maps.mapio import OccupancyMap
 
 from .kb import KnowledgeBase, OwlPass
 from .places import PlaceMap, attach_signs, segment_places
-from .vocabulary import Vocabulary, load_vocabulary
+from .vocabulary import Vocabulary, canonical, load_vocabulary
 
 __all__ = ["SemanticMap", "build_semantic_map", "sign_place_id", "write_semantic_map"]
 
 #: The kind given to a segmented place no sign names, by its shape.
 UNSIGNED_KIND = {"corridor": "Corridor", "hall": "Hall", "room": "Room"}
+#: How far (m) in front of its plate a room known only by its sign is anchored: in the
+#: corridor, at its door, where a plan to it stops.
+DOOR_ANCHOR = 0.5
 
 
 @dataclass
@@ -46,6 +50,11 @@ class SemanticMap:
         Place id -> ontology class local name (every place).
     sign_places
         Index into the signs list -> the id of the place the sign labels (or None).
+    unentered
+        Id -> (name, (x, y)) of each room known only by its sign: the map has no
+        room behind the plate to segment (the robot has not been inside), so the
+        room is a place of the knowledge base without an outline, anchored at
+        its door (not in ``places``, ``names`` or ``kinds``).
     object_places
         Index into the objects list -> the id of the place the object is in (or None).
     timings_ms
@@ -57,6 +66,7 @@ class SemanticMap:
     names: dict[str, str]
     kinds: dict[str, str]
     sign_places: dict[int, str | None]
+    unentered: dict[str, tuple[str, tuple[float, float]]] = field(default_factory=dict)
     object_places: dict[int, str | None] = field(default_factory=dict)
     timings_ms: dict[str, float] = field(default_factory=dict)
 
@@ -125,17 +135,22 @@ def build_semantic_map(occupancy: OccupancyMap, signs: list[Mapping[str, Any]],
             kinds[place_id] = kind
     for place in pm.places:
         kinds.setdefault(place.id, UNSIGNED_KIND.get(place.kind_hint, "Room"))
+    unentered = _unentered_rooms(signs, sign_places, names, vocabulary)
 
     kb = KnowledgeBase(ontology, vocabulary=vocabulary)
     for place in pm.places:
         kb.add_place(place.id, kinds[place.id], name=names.get(place.id),
                      centroid=tuple(place.centroid), polygon=place.polygon, area=place.area)
+    for i, (place_id, anchor) in unentered.items():
+        text = str(signs[i]["text"])
+        kb.add_place(place_id, _place_kind(text, vocabulary), name=text, centroid=anchor)
     for door in pm.doors:
         kb.add_door(door.id, door.a, door.b, x=door.x, y=door.y, width=door.width)
     for i, sign in enumerate(signs):
         text = str(sign.get("text", ""))
+        place_id = sign_places.get(i) or unentered.get(i, (None,))[0]
         kb.add_sign(f"sign_{i + 1}", text, x=float(sign["x"]), y=float(sign["y"]),
-                    facing_deg=float(sign.get("facing", 0.0)), place_id=sign_places.get(i),
+                    facing_deg=float(sign.get("facing", 0.0)), place_id=place_id,
                     place_class=_place_kind(text, vocabulary))
     object_places: dict[int, str | None] = {}
     for i, obj in enumerate(objects):
@@ -150,7 +165,36 @@ def build_semantic_map(occupancy: OccupancyMap, signs: list[Mapping[str, Any]],
     kb.reason()
     timings["reason_ms"] = (time.perf_counter() - t0) * 1e3
     return SemanticMap(places=pm, kb=kb, names=names, kinds=kinds, sign_places=sign_places,
-                       object_places=object_places, timings_ms=timings)
+                       unentered={pid: (str(signs[i]["text"]), anchor)
+                                  for i, (pid, anchor) in unentered.items()},
+                       object_places=object_places,
+                       timings_ms=timings)
+
+
+def _unentered_rooms(signs: list[Mapping[str, Any]], sign_places: Mapping[int, str | None],
+                     names: Mapping[str, str], vocabulary: Vocabulary
+                     ) -> dict[int, tuple[str, tuple[float, float]]]:
+    """Sign index -> (place id, door anchor) for each room known only by its sign.
+
+    Why: a plate read on a door the robot never went through names a room the
+    map has no outline for, and dropping it loses what the robot did learn:
+    that this room is behind that door.  A user asking to go there is taken
+    to the door.  Only signs that name a place class count, once per name,
+    and not when a segmented place already carries the name.
+    """
+    taken = {canonical(text) for text in names.values()}
+    out: dict[int, tuple[str, tuple[float, float]]] = {}
+    for i, sign in enumerate(signs):
+        text = str(sign.get("text", ""))
+        facing = math.radians(float(sign.get("facing", float("nan"))))
+        if (sign_places.get(i) is not None or canonical(text) in taken
+                or _place_kind(text, vocabulary) is None or not math.isfinite(facing)):
+            continue
+        taken.add(canonical(text))
+        anchor = (float(sign["x"]) + DOOR_ANCHOR * math.cos(facing),
+                  float(sign["y"]) + DOOR_ANCHOR * math.sin(facing))
+        out[i] = (sign_place_id(i), anchor)
+    return out
 
 
 def live_kb(signs: list[Mapping[str, Any]], objects: Iterable[Mapping[str, Any]] = (), *,
@@ -177,7 +221,6 @@ def live_kb(signs: list[Mapping[str, Any]], objects: Iterable[Mapping[str, Any]]
     KnowledgeBase
         Not yet reasoned: call ``reason()``.
     """
-    import math
     vocabulary = vocabulary or load_vocabulary()
     kb = KnowledgeBase(ontology, vocabulary=vocabulary, owl=owl)
     anchors = []
@@ -234,8 +277,10 @@ def write_semantic_map(out_dir: str | Path, sm: SemanticMap, occupancy: Occupanc
     geojson = out / "places.geojson"
     png = out / picture
     sm.kb.serialize(ttl)
-    write_places_geojson(geojson, sm.places, names=sm.names, kinds=sm.kinds)
+    kinds = {**sm.kinds, **{pid: sm.kb.place_kind(pid) or "Room" for pid in sm.unentered}}
+    write_places_geojson(geojson, sm.places, names=sm.names, kinds=kinds, unentered=sm.unentered)
     labels = {p.id: sm.names.get(p.id) or sm.kinds.get(p.id, "") for p in sm.places.places}
     draw_place_map(png, sm.places, occupancy, labels=labels, signs=signs, objects=objects,
+                   unentered=sm.unentered,
                    title="semantic map: places, doors, signs and objects")
     return [ttl, geojson, png]

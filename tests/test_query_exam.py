@@ -332,3 +332,72 @@ def test_a_world_without_commands_reports_no_commands_score(tmp_path):
     metrics = _run_knowledge(tmp_path, commands=False)
     assert "rooms_mean_iou" in metrics
     assert not [key for key in metrics if key.startswith("commands")]
+
+
+# ---- where plans stop ---------------------------------------------------------------------------
+def _mapped_run(folder: Path, world_file: Path, signs: list[dict], unknown: str | None = None):
+    """A run folder as the semantic mapping leaves it, the map the true floor plan (with the
+    room ``unknown`` never seen), and the planner's map of it (its world not recorded)."""
+    from blocks.maps.mapio import OccupancyMap
+    from semantic.place_score import polygon_mask_on_grid
+    from semantic.query import load_run_map
+    from semantic.semantic_map import build_semantic_map, write_semantic_map
+    world = load_world(world_file)
+    occupancy = occupancy_map_from_world(world)
+    if unknown is not None:
+        inside = polygon_mask_on_grid(np.asarray(world.place(unknown).polygon), occupancy.shape,
+                                      occupancy.resolution, occupancy.origin)
+        occupancy = OccupancyMap(np.where(inside, np.nan, occupancy.occupancy),
+                                 occupancy.resolution, occupancy.origin)
+    write_map(folder / "maps" / "offline.yaml", occupancy)
+    write_path_csv(folder / "maps" / "offline_path.csv", [0], np.array([[1.0, 5.0, 0.0]]))
+    write_semantic_map(folder, build_semantic_map(occupancy, signs), occupancy, signs=signs)
+    return load_run_map(folder)
+
+
+def _signs(world) -> list[dict]:
+    return [{"text": s.text, "x": s.x, "y": s.y, "facing": float(np.degrees(s.facing))}
+            for s in world.signs]
+
+
+@pytest.fixture(scope="module")
+def exam_floor(tmp_path_factory):
+    return _write_floor(tmp_path_factory.mktemp("stops"))
+
+
+def test_a_stop_is_at_a_room_inside_it_or_in_front_of_it_not_behind_its_wall(exam_floor):
+    from semantic.query.exam import AT_ROOM, stops_at
+    world = load_world(exam_floor)
+    assert stops_at(world, "LAB 1", 2.0, 8.0)  # inside
+    assert stops_at(world, "LAB 1", 3.2, 5.0)  # the corridor in front of its door and plate
+    assert not stops_at(world, "LAB 1", 3.2, 6.1 - AT_ROOM - 0.2)  # too far out (a wall away)
+    assert not stops_at(world, "LAB 1", 5.0, 8.0)  # in the meeting room next door
+    assert not stops_at(world, "LAB 1", 11.0, 5.0)  # down the corridor
+    assert stops_at(world, "lab  1", 2.0, 8.0)  # names compare as signs do
+    assert stops_at(world, "NO SUCH ROOM", 50.0, 50.0)  # nothing to check against
+
+
+def test_a_plan_to_a_room_only_read_stops_at_its_door_and_counts(exam_floor, tmp_path):
+    qm = _mapped_run(tmp_path, exam_floor, _signs(load_world(exam_floor)), unknown="LAB 1")
+    case = CommandCase("go to lab 1", "go_named", objectives=(("go to", "LAB 1"),))
+    (row,) = score_commands(qm, [case], NOW, world=load_world(exam_floor))["cases"]
+    assert row["right"], row
+    from semantic.query import ask
+    plan = ask("go to lab 1", qm, now=NOW)
+    (objective,) = plan.grounding.objectives
+    assert 4.05 < objective.target.y < 6.0  # in the corridor, not in the unmapped room
+    assert "has not been inside" in plan.grounding.answer
+
+
+def test_a_plan_named_right_that_stops_in_the_wrong_room_is_wrong(exam_floor, tmp_path):
+    """A plate misplaced on the meeting room's door names that room LAB 1 on the map: the
+    plan says LAB 1 and drives into the meeting room."""
+    world = load_world(exam_floor)
+    signs = [s for s in _signs(world) if s["text"] not in ("LAB 1", "MEETING ROOM 1")]
+    signs.append({"text": "LAB 1", "x": 7.2, "y": 5.95, "facing": -90.0})
+    qm = _mapped_run(tmp_path, exam_floor, signs)
+    case = CommandCase("go to lab 1", "go_named", objectives=(("go to", "LAB 1"),))
+    (row,) = score_commands(qm, [case], NOW, world=world)["cases"]
+    assert not row["right"] and "not at LAB 1" in row["got"], row
+    (by_name,) = score_commands(qm, [case], NOW)["cases"]  # no world known: names alone
+    assert by_name["right"]

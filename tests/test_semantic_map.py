@@ -163,3 +163,59 @@ def test_an_owl_pass_that_failed_does_not_give_its_last_closure_again(monkeypatc
     again, incremental = owl.close(axioms, {a, b})
     assert not incremental and again is not first  # a new reasoner, from scratch
     assert (b[0], RDF.type, kb._class("Room", {"place"}, "kind")) in again.on_map
+
+
+@pytest.fixture(scope="module")
+def manager_unentered(office):
+    """The office mapped everywhere but inside the MANAGER's room, as when the robot read
+    the plate beside its door and never went in; the plate read twice."""
+    import numpy as np
+
+    from blocks.maps.mapio import OccupancyMap
+    from semantic.place_score import polygon_mask_on_grid
+    world, occupancy, signs = office
+    inside = polygon_mask_on_grid(np.asarray(world.place("MANAGER").polygon), occupancy.shape,
+                                  occupancy.resolution, occupancy.origin)
+    unknown = np.where(inside, np.nan, occupancy.occupancy)
+    blank = OccupancyMap(unknown, occupancy.resolution, occupancy.origin)
+    manager = next(s for s in signs if s["text"] == "MANAGER")
+    again = dict(manager, x=manager["x"] + 0.3)
+    return signs + [again], build_semantic_map(blank, signs + [again])
+
+
+def test_a_room_read_but_not_entered_is_a_place_at_its_door(manager_unentered):
+    """Why: the robot learnt that the manager's room is behind that door; dropping the
+    room with the map's missing outline would lose it for every command."""
+    signs, sm = manager_unentered
+    k = next(i for i, s in enumerate(signs) if s["text"] == "MANAGER")
+    assert "MANAGER" not in sm.names.values() and sm.sign_places[k] is None
+    (pid, (name, (x, y))), = sm.unentered.items()  # one place for both readings
+    facing = math.radians(signs[k]["facing"])
+    assert name == "MANAGER"
+    assert (x, y) == pytest.approx((signs[k]["x"] + 0.5 * math.cos(facing),
+                                    signs[k]["y"] + 0.5 * math.sin(facing)))
+    assert sm.kb.place_kind(pid) == "ManagerOffice"
+    assert sm.kb.works_in("Manager") == [pid]  # the sign's meaning is kept
+    assert sm.kb.polygon(pid) is None
+    mapped = {p.id for p in sm.places.places}
+    assert pid not in mapped and len(sm.names) == len(signs) - 2  # the rest as before
+
+
+def test_only_place_names_not_yet_on_the_map_make_unentered_rooms(office):
+    _, occupancy, signs = office
+    extra = [dict(signs[0], x=signs[0]["x"] + 9.0),  # a name already on the map
+             {"text": "PUSH", "x": 20.0, "y": 5.05, "facing": 90.0}]  # names no place
+    sm = build_semantic_map(occupancy, signs + extra)
+    assert sm.unentered == {}
+
+
+def test_an_unentered_room_is_on_the_picture_and_in_the_geojson(tmp_path, office,
+                                                                 manager_unentered):
+    _, occupancy, _ = office
+    signs, sm = manager_unentered
+    write_semantic_map(tmp_path, sm, occupancy, signs=signs)
+    geo = json.loads((tmp_path / "places.geojson").read_text())
+    (room,) = [f for f in geo["features"] if f["properties"].get("entered") is False]
+    assert room["geometry"]["type"] == "Point"
+    assert room["properties"]["name"] == "MANAGER"
+    assert room["properties"]["kind"] == "ManagerOffice"

@@ -190,7 +190,7 @@ class Knowledge(Block):
         except MapSourceError as exc:
             self.report("commands_error", str(exc))
             return
-        score = score_commands(qm, *self._commands)
+        score = score_commands(qm, *self._commands, world=self._world())
         for key in ("total", "right", "right_fraction"):
             self.report(f"commands_{key}", score[key])
         for name, tally in score["categories"].items():

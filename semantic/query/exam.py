@@ -33,7 +33,9 @@ refused only if no place is of that kind and no sign names it (corridors and
 halls aside: a run's map types unsigned places as those).
 
 A command that expects a plan is right when the plan's objectives are the
-expected (action, place) pairs in order; a question, when the answer holds every
+expected (action, place) pairs in order and, on a map of a known world, each
+place's stop is at that true room (:func:`stops_at`: inside it, or in front of
+it, as a plan to a room the robot only read the sign of stops); a question, when the answer holds every
 expected word (whole words, case kept); a refusal, when the planner raises
 :class:`~semantic.query.GroundingError` holding every expected word. Anything
 else (a parse error, a plan where a refusal was due) is wrong, and the row says
@@ -52,6 +54,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import cv2
 import numpy as np
 
 from blocks.core.atomic import atomic_write_text
@@ -65,14 +68,20 @@ from .ground import GroundingError
 from .mapsource import QueryMap
 from .parse import TITLES
 from .session import ask, parse_now
-from .truth import FloorTruth, floor_truth
+from .truth import FloorTruth, _containing, floor_truth
 
 if TYPE_CHECKING:
     from sim2d.world import World
 
-__all__ = ["CATEGORIES", "DEFAULT_NOW", "NEAREST_MARGIN", "REFUSAL_SHARE", "CommandCase",
+__all__ = ["AT_ROOM", "CATEGORIES", "DEFAULT_NOW", "NEAREST_MARGIN", "REFUSAL_SHARE", "CommandCase",
            "CommandsError", "generate_commands", "load_commands", "score_commands",
            "write_commands"]
+
+#: How far (m) outside the right room's outline a plan's stop may be, in a place the
+#: room's door leads to, and still be at that room: in the corridor in front of it,
+#: where a plan to a room known only by its sign stops (semantic.semantic_map's
+#: DOOR_ANCHOR), the map's drift included.
+AT_ROOM = 1.5
 
 #: Command categories and what each asks.
 CATEGORIES: dict[str, str] = {
@@ -501,7 +510,8 @@ assert tuple(_MAKERS) == tuple(CATEGORIES)
 
 # ---- scoring ------------------------------------------------------------------------------------
 def score_commands(qm: QueryMap, cases: Iterable[CommandCase],
-                   now: str | dt.datetime = DEFAULT_NOW) -> dict[str, Any]:
+                   now: str | dt.datetime = DEFAULT_NOW, *,
+                   world: World | None = None) -> dict[str, Any]:
     """Ask the planner every command on a map and count the right answers.
 
     Parameters
@@ -512,6 +522,9 @@ def score_commands(qm: QueryMap, cases: Iterable[CommandCase],
         From :func:`generate_commands` or :func:`load_commands`.
     now
         The moment the commands are asked at ("monday 10:00" or a datetime).
+    world
+        The world the map is of, to check where plans stop (:func:`stops_at`);
+        default: the map's own (``qm.world``), when known.
 
     Returns
     -------
@@ -526,7 +539,8 @@ def score_commands(qm: QueryMap, cases: Iterable[CommandCase],
         ``now`` is not a moment.
     """
     when = parse_now(now) if isinstance(now, str) else now
-    rows = [_judge(case, qm, when) for case in cases]
+    world = world if world is not None else _world_of(qm)
+    rows = [_judge(case, qm, when, world) for case in cases]
     categories: dict[str, dict[str, Any]] = {}
     for row in rows:
         tally = categories.setdefault(row["category"], {"total": 0, "right": 0})
@@ -543,7 +557,38 @@ def _fraction(part: int, whole: int) -> float:
     return part / whole if whole else 0.0
 
 
-def _judge(case: CommandCase, qm: QueryMap, when: dt.datetime) -> dict[str, Any]:
+def _world_of(qm: QueryMap) -> World | None:
+    """The world a map is of, loaded, or None when it is unknown or cannot be read (the
+    plans are then judged by their places' names alone)."""
+    if qm.world is None:
+        return None
+    from sim2d.world import load_world
+    try:
+        return load_world(qm.world)
+    except SemmapError:
+        return None
+
+
+def stops_at(world: World, name: str, x: float, y: float) -> bool:
+    """Whether a stop at (x, y) is at the true place called ``name``: inside its outline,
+    or in front of it, within :data:`AT_ROOM` of its outline in a place one of its open
+    doors leads to (a corridor), not behind a wall in the room next door.  True when the
+    world has no such place: there is nothing to check the stop against."""
+    places = [p for p in world.places if same_name(p.name, name)]
+    if not places:
+        return True
+    outlines = [np.asarray(p.polygon, np.float32).reshape(-1, 1, 2) for p in places]
+    nearest = max(cv2.pointPolygonTest(o, (float(x), float(y)), True) for o in outlines)
+    if nearest >= 0:
+        return True
+    names = {p.name for p in places}
+    fronts = {other for d in world.doors if not d.closed and names & set(d.between)
+              for other in d.between if other not in names}
+    return -nearest <= AT_ROOM and _containing(world, x, y) in fronts
+
+
+def _judge(case: CommandCase, qm: QueryMap, when: dt.datetime,
+           world: World | None = None) -> dict[str, Any]:
     """One row of the score: whether the planner's answer is the expected one."""
     row = {"command": case.command, "category": case.category, "right": False,
            "expected": case.expected_text(), "got": ""}
@@ -560,6 +605,13 @@ def _judge(case: CommandCase, qm: QueryMap, when: dt.datetime) -> dict[str, Any]
         row["right"] = len(got) == len(case.objectives) and all(
             action == want_action and same_name(place, want_place)
             for (action, place), (want_action, want_place) in zip(got, case.objectives))
+        astray = [o.target for o in plan.grounding.objectives if o.target.place_id is not None
+                  and world is not None and not stops_at(world, o.target.label, o.target.x,
+                                                         o.target.y)]
+        if row["right"] and astray:
+            row["right"] = False
+            row["got"] += "; " + "; ".join(f"stops at ({t.x:.1f}, {t.y:.1f}) m, not at "
+                                          f"{t.label}" for t in astray)
     elif case.expects == "answer":
         row["got"] = plan.grounding.answer
         row["right"] = _holds(plan.grounding.answer, case.answer)

@@ -145,6 +145,12 @@ class _Grounder:
                             "has not been inside, and its doorway is mapped too narrow)",
                             hint="Map the building again with room visits on, or ask for "
                                  f"another place. Known places: {self.qm.known_places()}.")
+        info = self.qm.places.get(place_id)
+        if info is not None and info.polygon is None and info.name:
+            note = (f"the robot read {label}'s sign but has not been inside: the plan stops "
+                    "at its door")
+            if note not in self.notes:
+                self.notes.append(note)
         return Target(place_id, label, point[0], point[1], why)
 
     def home(self, why: str = "where you are") -> Target:
