@@ -218,6 +218,11 @@ class LogOddsMapBlock(_MapWriter):
                                         "reading without an echo, so a wall the map is sure "
                                         "of is not cleared through (negative: nothing stops "
                                         "it)"),
+        "seen_through": Param(int, 0, "beams with an echo that must have passed a free cell, "
+                                      "0.3 m short of their echo, before an echo's arc is "
+                                      "kept off it, so the jambs' arcs do not shut a door "
+                                      "seen through (0: every arc cell takes its share)",
+                              min=0),
     }
 
     def setup(self) -> None:
@@ -233,7 +238,8 @@ class LogOddsMapBlock(_MapWriter):
                                        shared_arc=(None if self.p.shared_arc <= 0
                                                    else self.p.shared_arc),
                                        occlusion=(None if self.p.occlusion <= 0
-                                                  else self.p.occlusion))
+                                                  else self.p.occlusion),
+                                       seen_through=self.p.seen_through or None)
         self.map = LogOddsMap(self.model, resolution=self.p.resolution)  # tables built once
 
     def reset(self) -> None:

@@ -62,6 +62,25 @@ class InverseSonarModel:
         in rooms across a corridor's wall, and an explorer drives at the wall
         to reach them.  Each bearing of the cone clears up to the first such
         cell on it.
+    seen_through
+        Beams with an echo that must have passed a cell, reaching on at least
+        ``through_margin`` beyond it, for the cell, while the map holds it
+        free, to count as seen through when it lies on an echo's arc: the echo
+        came from the rest of the arc, which gets the evidence the
+        seen-through cells would have had (each cell at most ``l_occ``);
+        None: every arc cell takes its share.  Silent beams do not count: a
+        beam whose sound glanced off a wall crossed it and heard nothing.  Why:
+        passing a door a metre off, the diagonal sonars hear its jambs from
+        every position, and their arcs, as wide as the cone, lie across the
+        opening that the beams through it have already seen free; drawn
+        there, they shut the door on the map, and the room behind it, though
+        seen, is out of the planner's reach (``benchmarks/doorways.py``
+        counts such doors).
+    through_margin
+        How far (m) a beam must reach on beyond a cell to count as passing
+        through it.  A wall's surface cell is crossed by the beams that end
+        on the wall, just short of their echo; with no margin it would count
+        as seen through, and the wall would be drawn a cell deeper.
     """
 
     cone_deg: float = 30.0
@@ -75,6 +94,8 @@ class InverseSonarModel:
     no_echo_reach: float | None = None
     shared_arc: float | None = None
     occlusion: float | None = None
+    seen_through: int | None = None
+    through_margin: float = 0.3
 
     def __post_init__(self) -> None:
         if not 0 < self.cone_deg < 180:
@@ -91,6 +112,10 @@ class InverseSonarModel:
             raise ValueError(f"shared_arc must be > 0, got {self.shared_arc}")
         if self.occlusion is not None and not self.occlusion > 0:
             raise ValueError(f"occlusion must be > 0 (log-odds), got {self.occlusion}")
+        if self.seen_through is not None and not self.seen_through >= 1:
+            raise ValueError(f"seen_through must be >= 1 (beams), got {self.seen_through}")
+        if self.through_margin < 0:
+            raise ValueError(f"through_margin must be >= 0, got {self.through_margin}")
 
     def occupied_evidence(self, reading: float) -> float:
         """Log-odds each arc cell of an echo at ``reading`` (m) gets (see ``shared_arc``)."""
@@ -162,6 +187,14 @@ def clear_ranges(sensors: np.ndarray, ranges: np.ndarray, walls: np.ndarray,
     return clear
 
 
+#: Log-odds below which map_server calls a cell free (probability 0.196).
+FREE_LOG_ODDS = math.log(0.196 / 0.804)
+
+
+def _add_in_place(dest: np.ndarray, src: np.ndarray) -> None:
+    np.add(dest, src, out=dest)
+
+
 def log_odds_to_probability(log_odds: np.ndarray) -> np.ndarray:
     """p = 1 / (1 + exp(-l)), the occupancy probability of a log-odds value."""
     return 1.0 / (1.0 + np.exp(-log_odds))
@@ -211,6 +244,16 @@ class LogOddsMap:
         self._clear_lut = np.where(ranges[None, :] < ranges[:2 * self._reach + 1, None],
                                    np.float32(self.model.l_free), np.float32(0.0))
         self._clear_lut[:, self.OUTSIDE] = 0.0
+        margin = int(math.ceil(2 * self.model.through_margin / resolution))
+        self._through_lut = self._passed(self._lut, margin)
+
+    def _passed(self, lut: np.ndarray, margin: int) -> np.ndarray:
+        """1 where a beam's row clears on for ``margin`` range codes beyond the cell, else 0."""
+        passed = np.zeros(lut.shape, dtype=np.float32)
+        if margin < lut.shape[1]:
+            passed[:, :lut.shape[1] - margin] = lut[:, margin:] < 0
+        passed[:, self.OUTSIDE] = 0.0
+        return passed
 
     def _cone(self, heading: float, bearings: bool = False
               ) -> tuple[int, int, np.ndarray, np.ndarray | None]:
@@ -273,6 +316,9 @@ class LogOddsMap:
         """Forget every update (the precomputed cone tables are kept)."""
         self.grid = TiledGrid(self.resolution, dtype=np.float32, fill=0.0,
                               tile_size=self.tile_size)
+        # beams that passed each cell with through_margin to spare (model.seen_through)
+        self.through = TiledGrid(self.resolution, dtype=np.float32, fill=0.0,
+                                 tile_size=self.tile_size)
         self.updates = 0
 
     def _clamped_add(self, dest: np.ndarray, src: np.ndarray) -> None:
@@ -286,7 +332,10 @@ class LogOddsMap:
         ``sensor_poses`` is (N, 3): x, y, heading of each sonar in the map frame.
         ``clear_to`` (N,), where finite, is how far a reading without an echo
         clears instead of the model's ``no_echo_reach`` (e.g. up to the nearest
-        known wall in its cone, where its sound may have glanced off).
+        known wall in its cone, where its sound may have glanced off).  With
+        the model's ``seen_through``, the cells each beam with an echo passed
+        are counted into :attr:`through` as the scan is drawn (a silent beam
+        may have glanced off a wall it crossed).
         """
         res = self.resolution
         ix, iy = self.grid.cell_of(sensor_poses[:, 0], sensor_poses[:, 1])
@@ -300,24 +349,51 @@ class LogOddsMap:
         if clear_to is None:
             clear_to = np.full(len(ranges), np.nan)
         silent = np.asarray(ranges) >= no_echo
-        before = None
-        if self.model.occlusion is not None and silent.any():
+        before = passed = seen = None
+        if ((self.model.occlusion is not None and silent.any())
+                or self.model.seen_through is not None):
             before = self.grid.window(wx0, wy0, window.shape[0], window.shape[1])
+        if self.model.seen_through is not None:
+            passed = np.zeros(window.shape, dtype=np.float32)
+            seen = self.through.window(wx0, wy0, window.shape[0], window.shape[1])
         for (cx, cy, heading, reading, clear, quiet) in zip(ix, iy, sensor_poses[:, 2], ranges,
                                                             clear_to, silent):
             k = int(round(math.degrees(heading))) % 360
             dr, dc, codes = self._cones[k]
             if quiet and math.isfinite(clear):
-                row = self._clear_lut[min(int(round(max(float(clear), 0.0) / res * 2)), top)]
+                code = min(int(round(max(float(clear), 0.0) / res * 2)), top)
+                row = self._clear_lut[code]
             else:
-                row = self._lut[min(int(round(float(reading) / res * 2)), top)]
+                code = min(int(round(float(reading) / res * 2)), top)
+                row = self._lut[code]
             r0, c0 = cy - wy0 + dr, cx - wx0 + dc
             h, w = codes.shape
             delta = row[codes]
-            if quiet and before is not None:
+            if quiet and self.model.occlusion is not None:
                 delta[self._occluded(k, codes, before[r0:r0 + h, c0:c0 + w])] = 0.0
+            if passed is not None and not quiet:
+                self._blame_unseen(delta, seen[r0:r0 + h, c0:c0 + w],
+                                   before[r0:r0 + h, c0:c0 + w])
+                passed[r0:r0 + h, c0:c0 + w] += self._through_lut[code][codes]
             window[r0:r0 + h, c0:c0 + w] += delta
+        if passed is not None:
+            self.through.update(wx0, wy0, passed, _add_in_place, mask=passed != 0)
         return window, (wx0, wy0)
+
+    def _blame_unseen(self, delta: np.ndarray, passed: np.ndarray, log_odds: np.ndarray
+                      ) -> None:
+        """An echo's arc evidence taken off the cells already seen through (``passed``: the
+        beams through each, at least ``seen_through``, and free on the map by ``log_odds``)
+        and given to the rest, in place."""
+        arc = delta > 0
+        through = arc & (passed >= self.model.seen_through) & (log_odds <= FREE_LOG_ODDS)
+        if not through.any():
+            return
+        kept = arc & ~through
+        if kept.any():
+            share = float(delta[kept].max())
+            delta[kept] *= min(arc.sum() / kept.sum(), self.model.l_occ / share)
+        delta[through] = 0.0
 
     def add_scan(self, sensor_poses: np.ndarray, ranges: np.ndarray,
                  clear_to: np.ndarray | None = None) -> None:
