@@ -35,8 +35,9 @@ halls aside: a run's map types unsigned places as those).
 A command that expects a plan is right when the plan's objectives are the
 expected (action, place) pairs in order and, on a map of a known world, each
 place's stop is at that true room (:func:`stops_at`: inside it, or in front of
-it, as a plan to a room the robot only read the sign of stops); a question, when the answer holds every
-expected word (whole words, case kept); a refusal, when the planner raises
+it, as a plan to a room the robot only read the sign of stops); a question,
+when the answer holds every expected word (whole words, case kept); a refusal,
+when the planner raises
 :class:`~semantic.query.GroundingError` holding every expected word. Anything
 else (a parse error, a plan where a refusal was due) is wrong, and the row says
 what came instead. Names compare as the sign scorer compares them
@@ -74,7 +75,7 @@ if TYPE_CHECKING:
     from sim2d.world import World
 
 __all__ = ["AT_ROOM", "CATEGORIES", "DEFAULT_NOW", "NEAREST_MARGIN", "REFUSAL_SHARE", "CommandCase",
-           "CommandsError", "generate_commands", "load_commands", "score_commands",
+           "CommandsError", "generate_commands", "load_commands", "score_commands", "stops_at",
            "write_commands"]
 
 #: How far (m) outside the right room's outline a plan's stop may be, in a place the
