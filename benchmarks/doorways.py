@@ -30,6 +30,7 @@ from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
+import yaml
 from scipy import ndimage
 
 from blocks.maps.drift import DriftCorrection, DriftCorrector
@@ -39,9 +40,7 @@ from blocks.maps.score import score_map
 from blocks.navigate.grid import inflate
 from sim2d.world import load_world
 
-#: The exploration map of graphs/semantic_mapping.yaml (its explore_map node).
-GRAPH_MAP = {"no_echo_reach": 1.0, "shared_arc": 0.3}
-RESOLUTION = 0.1
+GRAPH = Path(__file__).resolve().parents[1] / "graphs" / "semantic_mapping.yaml"
 #: The explorer's grids (explore.frontiers' radius and tight_radius, m).
 WIDE, TIGHT = 0.36, 0.2
 #: How far (m) either side of a door's middle its two sides are tested.
@@ -50,7 +49,19 @@ SIDE = 0.7
 SLACK = 3
 
 
-def replay_exploration_map(run: Path, model: InverseSonarModel) -> OccupancyMap:
+def graph_map() -> tuple[dict, float]:
+    """The inverse sonar model's settings and the cell size of the exploration map in
+    graphs/semantic_mapping.yaml (its ``explore_map`` node; parameters given as graph
+    parameters, off by default there, are left at the model's defaults)."""
+    doc = yaml.safe_load(GRAPH.read_text())
+    node = next(n for n in doc["nodes"] if n["id"] == "explore_map")
+    known = {f.name for f in fields(InverseSonarModel)}
+    literal = {k: v for k, v in node.get("params", {}).items() if not str(v).startswith("${")}
+    return {k: v for k, v in literal.items() if k in known}, float(literal["resolution"])
+
+
+def replay_exploration_map(run: Path, model: InverseSonarModel,
+                           resolution: float) -> OccupancyMap:
     """The exploration map at the end of a recorded run, drawn with ``model``."""
     sonar = np.load(run / "sonar.npz")
     with open(run / "trajectory.csv", newline="") as f:
@@ -58,7 +69,7 @@ def replay_exploration_map(run: Path, model: InverseSonarModel) -> OccupancyMap:
                              for r in csv.DictReader(f)])
     mounts = sonar["robot@mounts"]
     corrector = DriftCorrector(mounts, float(sonar["robot@cone_deg"]), DriftCorrection())
-    grid = LogOddsMap(model, resolution=RESOLUTION)
+    grid = LogOddsMap(model, resolution=resolution)
     silent = model.max_range - model.max_range_margin
     mx, my, mt = mounts[:, 0], mounts[:, 1], mounts[:, 2]
     for tick, ranges in zip(sonar["robot@tick"], sonar["robot@ranges"]):
@@ -67,7 +78,7 @@ def replay_exploration_map(run: Path, model: InverseSonarModel) -> OccupancyMap:
         sensors = np.column_stack([x + c * mx - s * my, y + s * mx + c * my, theta + mt])
         grid.add_scan(sensors, ranges, clear_ranges(sensors, ranges, corrector.segments(), model))
     p, (ix, iy) = grid.probabilities()
-    return OccupancyMap(p, RESOLUTION, (ix * RESOLUTION, iy * RESOLUTION, 0.0))
+    return OccupancyMap(p, resolution, (ix * resolution, iy * resolution, 0.0))
 
 
 def door_sides(truth: OccupancyMap, x: float, y: float, width: float
@@ -123,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="a field of the inverse sonar model to replay instead of the graph's")
     ap.add_argument("--list", action="store_true", help="print every door")
     args = ap.parse_args(argv)
-    settings = dict(GRAPH_MAP)
+    settings, resolution = graph_map()
     known = {f.name: f for f in fields(InverseSonarModel)}
     for item in args.set:
         key, _, value = item.partition("=")
@@ -143,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
         sonar = np.load(run / "sonar.npz")
         model = InverseSonarModel(cone_deg=float(sonar["robot@cone_deg"]),
                                   max_range=float(sonar["robot@max_range"]), **settings)
-        m = replay_exploration_map(run, model)
+        m = replay_exploration_map(run, model, resolution)
         truth = occupancy_map_from_world(world)
         counts: Counter = Counter()
         for door in world.doors:
