@@ -103,9 +103,19 @@ def door_sides(truth: OccupancyMap, x: float, y: float, width: float
     return middle + SIDE * normal, middle - SIDE * normal
 
 
-def door_state(m: OccupancyMap, sides: tuple[np.ndarray, np.ndarray]) -> str:
-    """``passable``, ``tight``, ``shut`` or ``unseen`` (see the module docstring)."""
-    free = m.classes()[1]
+def passages(m: OccupancyMap) -> tuple[np.ndarray, list[tuple[np.ndarray, str]]]:
+    """The map's free cells, and the connected free space of the wide and the tight grid
+    (labelled, with the state a door joined on it is in), computed once per map."""
+    grids = [(ndimage.label(~inflate(m, radius=radius).blocked, structure=np.ones((3, 3)))[0],
+              state) for radius, state in ((WIDE, "passable"), (TIGHT, "tight"))]
+    return m.classes()[1], grids
+
+
+def door_state(m: OccupancyMap, reach: tuple[np.ndarray, list[tuple[np.ndarray, str]]],
+               sides: tuple[np.ndarray, np.ndarray]) -> str:
+    """``passable``, ``tight``, ``shut`` or ``unseen`` (see the module docstring);
+    ``reach`` is :func:`passages` of ``m``."""
+    free, grids = reach
     cells = []
     for p in sides:
         r = int(math.floor((p[1] - m.origin[1]) / m.resolution))
@@ -113,8 +123,7 @@ def door_state(m: OccupancyMap, sides: tuple[np.ndarray, np.ndarray]) -> str:
         if not (0 <= r < free.shape[0] and 0 <= c < free.shape[1]) or not free[r, c]:
             return "unseen"
         cells.append((r, c))
-    for radius, state in ((WIDE, "passable"), (TIGHT, "tight")):
-        labels, _ = ndimage.label(~inflate(m, radius=radius).blocked, structure=np.ones((3, 3)))
+    for labels, state in grids:
         near = [set(labels[max(r - SLACK, 0):r + SLACK + 1,
                            max(c - SLACK, 0):c + SLACK + 1].ravel().tolist()) - {0}
                 for r, c in cells]
@@ -157,10 +166,11 @@ def main(argv: list[str] | None = None) -> int:
         m = replay_exploration_map(run, model, resolution)
         truth = occupancy_map_from_world(world)
         counts: Counter = Counter()
+        reach = passages(m)
         for door in world.doors:
             if door.closed:
                 continue
-            state = door_state(m, door_sides(truth, door.x, door.y, door.width))
+            state = door_state(m, reach, door_sides(truth, door.x, door.y, door.width))
             counts[state] += 1
             totals[(width_bin(door.width), state)] += 1
             if args.list:
