@@ -425,6 +425,57 @@ def test_a_leg_backs_round_what_the_monitor_would_stop_no_more_than_creep_back()
     assert backed_before_giving_up(math.inf) > 2.0
 
 
+def test_a_leg_jiggling_ahead_and_back_round_what_the_monitor_stops_gives_up():
+    """Pinned by a corner, the way asks for a turn on the spot; the monitor stops it and
+    the nearest clear creeps go ahead and back in turn, getting nowhere (ring-1001: 40 s
+    of it, a rear corner touching the wall at every back)."""
+
+    class AheadThenBack:  # a turn is stopped; a creep is clear one way, then the other
+        calls = 0
+
+        def stops(self, pose, v, w):
+            return True
+
+        def nearest_clear(self, pose, v, w):
+            self.calls += 1
+            return (0.15, 0.0) if self.calls % 2 else (-0.15, 0.0)
+
+    def steps_to_give_up(creep_reversals: int) -> int | None:
+        way = np.array([[0.0, 0.0], [0.0, 3.0]])  # straight to the left: turn first
+        leg, echoes, x = Leg(PurePursuit(way), started=0.0), AheadThenBack(), 0.0
+        for k in range(300):
+            v, _, outcome = leg.step(0.1 * k, np.array([x, 0.0, 0.0]), timeout=120.0,
+                                     stall_time=10.0, echoes=echoes,
+                                     creep_reversals=creep_reversals)
+            if outcome:
+                assert outcome == "no progress" and leg.why.startswith(
+                    "crept ahead and back" if creep_reversals < 100 else "no progress for")
+                return k
+            x += 0.1 * v
+        return None
+
+    assert steps_to_give_up(3) == 4  # the fourth reversal, not stall_time's 100 steps
+    assert steps_to_give_up(1000) == 101  # the turn never turned: stall_time ends it
+
+
+def test_a_turn_on_the_spot_is_progress_only_while_the_heading_moves():
+    way = np.array([[0.0, 0.0], [0.0, 3.0]])  # straight to the left: turn first
+
+    def outcome_after(seconds: float, turning: bool) -> str:
+        leg, theta = Leg(PurePursuit(way), started=0.0), 0.0
+        for k in range(int(seconds * 10)):
+            v, w, outcome = leg.step(0.1 * k, np.array([0.0, 0.0, theta]), timeout=120.0,
+                                     stall_time=10.0)
+            if outcome:
+                return outcome
+            if turning:
+                theta += 0.1 * w * 0.05  # a slow turn, 20 times slower than asked
+        return ""
+
+    assert outcome_after(20.0, turning=False) == "no progress"  # wedged: the turn never turns
+    assert outcome_after(20.0, turning=True) == ""  # slow, but turning
+
+
 def test_a_visit_held_on_its_way_to_the_door_ends_failed_at_once():
     local = corridor_and_room()
     positions = np.array([[0.5, 6.0], [2.0, 6.0]])

@@ -16,6 +16,9 @@ from .pursuit import PurePursuit, wrap
 
 __all__ = ["Leg", "TurnWatch", "dedupe", "turn_rate"]
 
+#: How far (rad) a turn on the spot must have turned to count as a leg's progress.
+TURN_HEADWAY = 0.05
+
 
 @dataclass
 class Leg:
@@ -29,6 +32,10 @@ class Leg:
     held: HeldClock = field(default_factory=HeldClock)  # by a collision monitor
     backed: float = 0.0  # m backed in a row by creeping round what the monitor would stop
     last_time: float = math.nan
+    heading: float = math.nan  # the heading at the last progress: a turn counts once it turns
+    creep_sign: float = 0.0  # the direction of the last creep (+1 ahead, -1 back)
+    reversals: int = 0  # creeps that went the other way from the one before, since progress
+    why: str = ""  # what 'no progress' meant, for a person reading the log
 
     def __post_init__(self) -> None:
         if math.isnan(self.progress_time):
@@ -38,7 +45,8 @@ class Leg:
              stall_time: float, scale: float = 1.0,
              held_time: float = math.inf,
              echoes: EchoMemory | None = None,
-             creep_back: float = 0.4) -> tuple[float, float, str]:
+             creep_back: float = 0.4,
+             creep_reversals: int = 3) -> tuple[float, float, str]:
         """``(v, w, outcome)``: outcome is '' while under way, else 'arrived',
         'timeout' (longer than ``timeout`` s), 'no progress' (none for ``stall_time`` s)
         or 'held' (a collision monitor let none of the leg's command through, ``scale``
@@ -54,7 +62,12 @@ class Leg:
         than ``creep_back`` (m) with no going ahead between (turns on the spot
         do not count): the rear has few sonars, and a wall behind met at a
         slant is silent (a room visit's way back through a door 0.8 m wide
-        backed 1.2 m into one).
+        backed 1.2 m into one).  Creeping that turns ahead, back, ahead again
+        more than ``creep_reversals`` times with no progress between ends as
+        'no progress' too: the robot is jiggling on the spot, and each back
+        may touch that silent wall (a room visit pinned by a wall corner jiggled
+        40 s against one).  A turn on the spot is progress only while the
+        heading moves: a turn the monitor stops, replaced by creeps, is not.
         """
         if self.held.update(time, scale, self.last != (0.0, 0.0)) >= held_time - 1e-9:
             self.last = (0.0, 0.0)
@@ -62,16 +75,27 @@ class Leg:
         v, w, status = self.follower.step(pose, 0.0)
         if status == "arrived":
             return 0.0, 0.0, "arrived"
-        if self.follower.progress > self.best + 0.05 or status == "turning":
+        turned = status == "turning" and (math.isnan(self.heading) or abs(
+            wrap(float(pose[2]) - self.heading)) >= TURN_HEADWAY)
+        if self.follower.progress > self.best + 0.05 or turned:
             self.best, self.progress_time = max(self.best, self.follower.progress), time
+            self.heading, self.reversals = float(pose[2]), 0
         if time - self.started > timeout:
             return 0.0, 0.0, "timeout"
         if time - self.progress_time > stall_time:
+            self.why = f"no progress for {stall_time:g} s"
             return 0.0, 0.0, "no progress"
         backing = False
         if echoes is not None and echoes.stops(pose, v, w):
             v, w = echoes.nearest_clear(pose, v, w) or (v, w)
             backing = v < 0.0
+            if v != 0.0:
+                sign = math.copysign(1.0, v)
+                self.reversals += int(self.creep_sign == -sign)
+                self.creep_sign = sign
+        if self.reversals > creep_reversals:
+            self.last, self.why = (0.0, 0.0), f"crept ahead and back {self.reversals} times"
+            return 0.0, 0.0, "no progress"
         dt = 0.0 if math.isnan(self.last_time) else time - self.last_time
         self.last_time = time
         if backing:
@@ -79,7 +103,7 @@ class Leg:
         elif v > 0.0:  # going ahead again (a turn on the spot between backs goes nowhere)
             self.backed = 0.0
         if self.backed > creep_back:
-            self.last = (0.0, 0.0)
+            self.last, self.why = (0.0, 0.0), f"crept back {creep_back:g} m blind"
             return 0.0, 0.0, "no progress"
         self.last = (float(v), float(w))
         return float(v), float(w), ""
