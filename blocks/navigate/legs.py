@@ -62,7 +62,7 @@ class Leg:
         than ``creep_back`` (m) with no going ahead between (turns on the spot
         do not count): the rear has few sonars, and a wall behind met at a
         slant is silent (a room visit's way back through a door 0.8 m wide
-        backed 1.2 m into one).  Creeping that turns ahead, back, ahead again
+        backed 1.2 m into one).  Creeping that goes ahead, back, ahead again
         more than ``creep_reversals`` times with no progress between ends as
         'no progress' too: the robot is jiggling on the spot, and each back
         may touch that silent wall (a room visit pinned by a wall corner jiggled
