@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .mapio import OccupancyMap
 from .tiles import TiledGrid
 
 
@@ -187,8 +188,8 @@ def clear_ranges(sensors: np.ndarray, ranges: np.ndarray, walls: np.ndarray,
     return clear
 
 
-#: Log-odds below which map_server calls a cell free (probability 0.196).
-FREE_LOG_ODDS = math.log(0.196 / 0.804)
+#: Log-odds below which map_server calls a cell free (``OccupancyMap.free_thresh``).
+FREE_LOG_ODDS = math.log(OccupancyMap.free_thresh / (1.0 - OccupancyMap.free_thresh))
 
 
 def _add_in_place(dest: np.ndarray, src: np.ndarray) -> None:

@@ -533,7 +533,7 @@ class RoomVisitor:
             self._leg_ended(time, pose, f"{self.phase}: timeout after {self.p.leg_timeout:g} s")
             return 0.0, 0.0
         if outcome:
-            self._leg_ended(time, pose, f"{self.phase}: {leg.why or 'no progress'}")
+            self._leg_ended(time, pose, f"{self.phase}: {leg.why}")
             return 0.0, 0.0
         return v, w
 
