@@ -120,13 +120,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.rounds < 1:
         parser.error("--rounds must be at least 1")
     steps = ["--steps", "300"] if args.quick else []
+    bare_steps = "1000" if args.quick else "3000"
     with tempfile.TemporaryDirectory(prefix="bench-pipeline-") as tmp:
         tmp = Path(tmp)
-        bares = [run(BARE, tmp / "bare0", "--steps", "3000")[0]]
+        bares = [run(BARE, tmp / "bare0", "--steps", bare_steps)[0]]
         pipes = []
         for i in range(args.rounds):
             pipes.append(run(PIPELINE, tmp / f"pipeline{i}", *steps))
-            bares.append(run(BARE, tmp / f"bare{i + 1}", "--steps", "3000")[0])
+            bares.append(run(BARE, tmp / f"bare{i + 1}", "--steps", bare_steps)[0])
     result = summarise(pipes, bares)
     for i, r in enumerate(result["rounds"]):
         print(f"round {i + 1}: {r['wall_time_s']:.1f} s of ticks, {r['x_real_time']:.1f}x real "
@@ -140,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"whole run: {result['whole_run_s']:.1f} s ({result['wall_time_s']:.1f} s of ticks, "
           f"{result['whole_run_s'] - result['wall_time_s']:.1f} s of start-up and finishing: "
           f"maps, scores, pictures)")
-    print(f"reference (sim2d alone: {BARE.relative_to(ROOT)}, 3000 ticks): "
+    print(f"reference (sim2d alone: {BARE.relative_to(ROOT)}, {bare_steps} ticks): "
           + ", ".join(f"{float(b['x_real_time']):.0f}x" for b in bares)
           + " real time (before, between and after the rounds)")
     print("slowest blocks: " + ", ".join(f"{r['node']} {r['total_s']:.1f} s"

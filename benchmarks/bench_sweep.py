@@ -85,8 +85,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--json", type=Path, default=RESULTS_JSON)
     args = parser.parse_args(argv)
-    n = 6 if args.quick else 40
+    n = 3 if args.quick else 40
     scale_runs = 2 if args.quick else 8
+    scale_steps = 500 if args.quick else SCALE_STEPS
     sets = ["limit=10"]
     with tempfile.TemporaryDirectory(prefix="bench-sweep-") as tmp:
         tmp = Path(tmp)
@@ -95,8 +96,8 @@ def main(argv: list[str] | None = None) -> int:
         shell_s = shell_loop(TRIVIAL, seeds, tmp / "shell", sets)
         sweep_s = sweep(TRIVIAL, [], seeds, tmp / "sweep", 1, sets)
         scale_seeds = range(scale_runs)
-        one_s = sweep(ROBOT, ["corridor"], scale_seeds, tmp / "one", 1, [], SCALE_STEPS)
-        two_s = sweep(ROBOT, ["corridor"], scale_seeds, tmp / "two", 2, [], SCALE_STEPS)
+        one_s = sweep(ROBOT, ["corridor"], scale_seeds, tmp / "one", 1, [], scale_steps)
+        two_s = sweep(ROBOT, ["corridor"], scale_seeds, tmp / "two", 2, [], scale_steps)
     per = {"plain_loop": loop_s / n, "shell_loop": shell_s / n, "sweep_1_worker": sweep_s / n}
     print(f"trivial graph ({TRIVIAL.relative_to(ROOT)}, --set limit=10), {n} runs: "
           "time per run")
@@ -104,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {name:<16} {seconds * 1e3:8.1f} ms   {seconds / per['plain_loop']:5.2f} x "
               "the plain loop")
     speedup = one_s / two_s
-    print(f"scaling: {scale_runs} runs of {ROBOT.name} ({SCALE_STEPS} ticks): 1 worker {one_s:.1f} s, "
+    print(f"scaling: {scale_runs} runs of {ROBOT.name} ({scale_steps} ticks): 1 worker {one_s:.1f} s, "
           f"2 workers {two_s:.1f} s: speed-up {speedup:.2f} (ideal 2.0 on "
           f"{os.cpu_count()} cores)")
     write_results(args.json, {
