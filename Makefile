@@ -41,7 +41,7 @@ demo: venv
 	@echo "Ask the robot: $(BIN)/semmap ask \"go to the kitchen\" --map $(OUT) [--execute]"
 
 test: venv-dev
-	$(BIN)/python -m pytest -q -n 2 --dist loadgroup
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 bench: venv
 	$(BIN)/python benchmarks/run_all.py

@@ -9,9 +9,9 @@ import pytest
 
 from conftest import ROOT
 
-# the main pipeline end to end; one worker runs the module, so its one office run
-# (the suite's longest setup) is not run again on the other
-pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("office_run")]
+# the main pipeline end to end (`make test` runs each file on one worker, --dist
+# loadfile, so the office run, the suite's longest setup, is not run on both)
+pytestmark = pytest.mark.slow
 
 GRAPH = ROOT / "graphs/semantic_mapping.yaml"
 
