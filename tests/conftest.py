@@ -9,17 +9,6 @@ import pytest
 
 from blocks.cli import main
 
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The files with a long end-to-end run first, each file's tests kept together.
-
-    Why: `make test` gives each file to one worker (--dist loadfile) in this
-    order; the office run of test_signs_graph.py alone takes four minutes, and
-    started last it ran on after the other worker had finished everything else.
-    """
-    slow_files = {item.path for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.path not in slow_files)
-
 ROOT = Path(__file__).resolve().parents[1]
 
 
